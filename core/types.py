@@ -1,0 +1,215 @@
+"""Plain data that crosses package boundaries inside `core` (DESIGN.md, "Data that crosses boundaries").
+
+Frozen dataclasses with numpy fields; no behaviour beyond cheap derived views, except
+`LocalEDF`, whose trilinear `distance`/`gradient` are the interface the controller sees a map by.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+NQ = 9
+"""Joints of the robot: q = [x, y, yaw, 6 arm joints]."""
+
+
+@dataclass(frozen=True)
+class RobotState:
+    """Joint positions q[9] and velocities v[9] at time t (s)."""
+
+    t: float
+    q: np.ndarray
+    v: np.ndarray
+
+
+@dataclass(frozen=True)
+class DepthFrame:
+    """One depth image: metres, 0 where the sensor saw nothing within range.
+
+    `K` is the 3×3 pinhole intrinsic matrix; `T_world_camera` maps camera coordinates
+    (OpenCV convention: x right, y down, z forward) to the world.
+    """
+
+    t: float
+    camera: str
+    depth: np.ndarray
+    K: np.ndarray
+    T_world_camera: np.ndarray
+    range_m: float = 3.0
+
+
+@dataclass(frozen=True)
+class Odometry:
+    """Base pose estimate (x, y, yaw) and twist in the world frame, as wheel odometry reports it."""
+
+    t: float
+    pose: np.ndarray
+    twist: np.ndarray
+
+
+@dataclass(frozen=True)
+class Observation:
+    """What a robot backend reports each tick: joint state, the depth frames captured since last time."""
+
+    state: RobotState
+    frames: tuple[DepthFrame, ...]
+    odometry: Odometry
+
+
+class ObjectStatus(StrEnum):
+    """Life cycle of a mapped object (POCD)."""
+
+    ACTIVE = "active"
+    REMOVED = "removed"
+
+
+@dataclass(frozen=True)
+class Posterior:
+    """q(l, v) = N(l | mu, sigma^2) · Beta(v | alpha, beta) of one object (METHOD.md, eq. 1)."""
+
+    mu: float = 0.0
+    sigma: float = 0.5
+    alpha: float = 2.0
+    beta: float = 1.0
+
+    @property
+    def consistency(self) -> float:
+        """E[v] = alpha / (alpha + beta)."""
+        return self.alpha / (self.alpha + self.beta)
+
+
+@dataclass(frozen=True)
+class MappedObject:
+    """An object of the object-level map: pose (4×4), extent (3, full size), surface points (P×3)."""
+
+    id: int
+    pose: np.ndarray
+    extent: np.ndarray
+    points: np.ndarray
+    posterior: Posterior
+    status: ObjectStatus = ObjectStatus.ACTIVE
+    observations: int = 0
+
+    @property
+    def consistency(self) -> float:
+        """E[v] of the object's posterior."""
+        return self.posterior.consistency
+
+
+@dataclass(frozen=True)
+class ObjectMapSnapshot:
+    """The object map at time t: live objects and the ids removed so far."""
+
+    t: float
+    objects: tuple[MappedObject, ...]
+    removed_ids: tuple[int, ...] = ()
+
+
+@dataclass(frozen=True)
+class LocalEDF:
+    """Signed Euclidean distance field on a regular grid (METHOD.md, 9a–9b).
+
+    `values[i, j, k]` is the distance (m) at `origin + voxel * (i, j, k)`, truncated at `cutoff`;
+    outside the grid the field is `cutoff` with zero gradient. Queries are vectorised: `p` is (..., 3).
+    """
+
+    origin: np.ndarray
+    voxel: float
+    values: np.ndarray
+    cutoff: float
+
+    def _cell(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        g = (np.asarray(p, dtype=float) - self.origin) / self.voxel
+        shape = np.array(self.values.shape)
+        inside = np.all((g >= 0.0) & (g <= shape - 1), axis=-1)
+        i0 = np.clip(np.floor(g).astype(int), 0, np.maximum(shape - 2, 0))
+        f = np.clip(g - i0, 0.0, 1.0)
+        return i0, f, inside
+
+    def _corners(self, i0: np.ndarray) -> np.ndarray:
+        v = self.values
+        x, y, z = i0[..., 0], i0[..., 1], i0[..., 2]
+        return np.stack(
+            [v[x, y, z], v[x + 1, y, z], v[x, y + 1, z], v[x + 1, y + 1, z],
+             v[x, y, z + 1], v[x + 1, y, z + 1], v[x, y + 1, z + 1], v[x + 1, y + 1, z + 1]],
+            axis=-1,
+        )
+
+    def distance(self, p: np.ndarray) -> np.ndarray:
+        """Trilinearly interpolated distance at points p (..., 3) → (...)."""
+        i0, f, inside = self._cell(p)
+        c = self._corners(i0)
+        fx, fy, fz = f[..., 0], f[..., 1], f[..., 2]
+        c00 = c[..., 0] * (1 - fx) + c[..., 1] * fx
+        c10 = c[..., 2] * (1 - fx) + c[..., 3] * fx
+        c01 = c[..., 4] * (1 - fx) + c[..., 5] * fx
+        c11 = c[..., 6] * (1 - fx) + c[..., 7] * fx
+        d = (c00 * (1 - fy) + c10 * fy) * (1 - fz) + (c01 * (1 - fy) + c11 * fy) * fz
+        return np.where(inside, d, self.cutoff)
+
+    def gradient(self, p: np.ndarray) -> np.ndarray:
+        """Gradient of the trilinear interpolant at points p (..., 3) → (..., 3), per metre."""
+        i0, f, inside = self._cell(p)
+        c = self._corners(i0)
+        fx, fy, fz = f[..., 0], f[..., 1], f[..., 2]
+        dx = ((c[..., 1] - c[..., 0]) * (1 - fy) + (c[..., 3] - c[..., 2]) * fy) * (1 - fz) + (
+            (c[..., 5] - c[..., 4]) * (1 - fy) + (c[..., 7] - c[..., 6]) * fy
+        ) * fz
+        dy = ((c[..., 2] - c[..., 0]) * (1 - fx) + (c[..., 3] - c[..., 1]) * fx) * (1 - fz) + (
+            (c[..., 6] - c[..., 4]) * (1 - fx) + (c[..., 7] - c[..., 5]) * fx
+        ) * fz
+        c0 = (c[..., 0] * (1 - fx) + c[..., 1] * fx) * (1 - fy) + (c[..., 2] * (1 - fx) + c[..., 3] * fx) * fy
+        c1 = (c[..., 4] * (1 - fx) + c[..., 5] * fx) * (1 - fy) + (c[..., 6] * (1 - fx) + c[..., 7] * fx) * fy
+        dz = c1 - c0
+        grad = np.stack([dx, dy, dz], axis=-1) / self.voxel
+        return np.where(inside[..., None], grad, 0.0)
+
+    @property
+    def upper(self) -> np.ndarray:
+        """Far corner of the grid (m)."""
+        return self.origin + self.voxel * (np.array(self.values.shape) - 1)
+
+
+class PlanStatus(StrEnum):
+    """Outcome of one controller step."""
+
+    OK = "ok"
+    SLACK = "ok_with_slack"
+    FALLBACK = "fallback_previous_plan"
+    STOPPING = "stopping"
+    FAILED = "failed"
+
+
+@dataclass(frozen=True)
+class Plan:
+    """One HTMPC solution: predicted q, v (N+1 × 9), u (N × 9), Cartesian paths and diagnostics."""
+
+    t: float
+    dt: float
+    q: np.ndarray
+    v: np.ndarray
+    u: np.ndarray
+    base_path: np.ndarray
+    ee_path: np.ndarray
+    task_errors: tuple[float, ...]
+    solve_ms: tuple[float, ...]
+    status: PlanStatus
+    message: str = ""
+    min_h: float = float("nan")
+    extras: dict[str, float] = field(default_factory=dict)
+
+
+@runtime_checkable
+class RobotBackend(Protocol):
+    """A robot the runtime drives: the MuJoCo simulation or a real robot behind the bridge."""
+
+    def observe(self) -> Observation:
+        """Latest joint state, odometry and the depth frames captured since the previous call."""
+        ...
+
+    def command(self, qdot: np.ndarray, t: float) -> None:
+        """Joint velocity command qdot[9] (base x, y, yaw in the world frame; arm joints), stamped t."""
+        ...

@@ -1,0 +1,127 @@
+"""pydantic schema of a task sequence: an ordered list of base and end-effector subtasks.
+
+Each subtask carries its target (a pose, or waypoints ending at one), tolerances, a timeout, a dwell
+time (e.g. a pick-up) and the priority order of the HTMPC costs while it is active: [base, ee] for
+navigation, [ee, base] for manipulation (METHOD.md, HTMPC).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+TaskName = Literal["base", "ee"]
+_Vec3 = tuple[float, float, float]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, validate_assignment=True)
+
+
+class BasePose(_Strict):
+    """Base target in the world: x, y (m) and an optional heading `yaw_deg` (None: position only)."""
+
+    x: float
+    y: float
+    yaw_deg: float | None = None
+
+    def xy(self) -> np.ndarray:
+        return np.array([self.x, self.y])
+
+    @property
+    def yaw_rad(self) -> float | None:
+        return None if self.yaw_deg is None else math.radians(self.yaw_deg)
+
+
+class EEPose(_Strict):
+    """End-effector target: `position` (m, world) and optional roll-pitch-yaw `rpy_deg` (None: position only)."""
+
+    position: _Vec3
+    rpy_deg: _Vec3 | None = None
+
+    def rotation(self) -> np.ndarray | None:
+        """World rotation R_d (3×3) from rpy (fixed axes x, y, z), None when position only."""
+        if self.rpy_deg is None:
+            return None
+        r, p, y = np.radians(self.rpy_deg)
+        Rx = np.array([[1, 0, 0], [0, np.cos(r), -np.sin(r)], [0, np.sin(r), np.cos(r)]])
+        Ry = np.array([[np.cos(p), 0, np.sin(p)], [0, 1, 0], [-np.sin(p), 0, np.cos(p)]])
+        Rz = np.array([[np.cos(y), -np.sin(y), 0], [np.sin(y), np.cos(y), 0], [0, 0, 1]])
+        return Rz @ Ry @ Rx
+
+
+class Tolerance(_Strict):
+    """When a subtask counts as reached."""
+
+    position_m: float = Field(0.1, gt=0.0)
+    orientation_deg: float = Field(10.0, gt=0.0)
+
+
+class _SubtaskBase(_Strict):
+    name: str = ""
+    tolerance: Tolerance = Tolerance()
+    timeout_s: float = Field(120.0, gt=0.0)
+    dwell_s: float = Field(0.0, ge=0.0)
+    """Time to hold the target within tolerance before the subtask completes (pick-up)."""
+    priority: list[TaskName] | None = None
+    """Order of the HTMPC costs while active; None: the kind's default."""
+
+    @field_validator("priority")
+    @classmethod
+    def _valid_priority(cls, v: list[TaskName] | None) -> list[TaskName] | None:
+        if v is not None and (not v or len(set(v)) != len(v)):
+            raise ValueError("priority lists 'base' and/or 'ee', each once")
+        return v
+
+    @model_validator(mode="after")
+    def _has_goal(self):
+        if self.target is None and not self.waypoints:
+            raise ValueError("a subtask needs a target or waypoints")
+        return self
+
+    def goal(self):
+        """The final pose: the target, else the last waypoint."""
+        return self.target if self.target is not None else self.waypoints[-1]
+
+    def path(self) -> list:
+        """Waypoints followed by the target."""
+        return [*self.waypoints, *([self.target] if self.target is not None else [])]
+
+
+class BaseSubtask(_SubtaskBase):
+    """Drive the base to a pose, through optional waypoints (whole-body navigation)."""
+
+    kind: Literal["base"] = "base"
+    target: BasePose | None = None
+    waypoints: list[BasePose] = []
+
+    @property
+    def order(self) -> list[TaskName]:
+        return list(self.priority) if self.priority else ["base", "ee"]
+
+
+class EESubtask(_SubtaskBase):
+    """Bring the end effector to a pose (manipulation), through optional waypoints."""
+
+    kind: Literal["ee"] = "ee"
+    target: EEPose | None = None
+    waypoints: list[EEPose] = []
+
+    @property
+    def order(self) -> list[TaskName]:
+        return list(self.priority) if self.priority else ["ee", "base"]
+
+
+Subtask = Annotated[BaseSubtask | EESubtask, Field(discriminator="kind")]
+
+
+class TaskSequence(_Strict):
+    """An ordered list of subtasks, run one after the other."""
+
+    name: str = "sequence"
+    scene: str | None = None
+    """Optional scene file this sequence was written for (relative to the sequence file)."""
+    subtasks: list[Subtask] = []

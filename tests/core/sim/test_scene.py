@@ -1,0 +1,78 @@
+import math
+
+import numpy as np
+import pytest
+
+from core.sim.scene import (
+    PAPER_BOX_M,
+    _passable,
+    aisle_scene,
+    load_scene,
+    parse_scene,
+    random_scene,
+    save_scene,
+    scene_to_yaml,
+)
+from core.yaml_validation import FileFormatError
+
+
+def test_random_scene_follows_the_paper_and_is_seeded():
+    for seed in range(15):
+        s = random_scene(seed)
+        assert len(s.boxes) >= 8
+        assert all(b.size == (PAPER_BOX_M,) * 3 for b in s.boxes)
+        xy = np.array([b.position[:2] for b in s.boxes])
+        assert np.all(np.abs(xy) <= 2.5)
+        assert {round(b.position[2], 3) for b in s.boxes} <= {0.3, 0.9}
+        assert _passable(list(s.boxes), s.robot_start[:2], s.goal, 0.6, (-4.5, 4.5, -3.5, 3.5))
+    assert random_scene(4) == random_scene(4)
+    assert random_scene(4) != random_scene(5)
+    assert any(b.position[2] > 0.5 for seed in range(5) for b in random_scene(seed).boxes)
+
+
+def test_aisle_is_a_closed_ring():
+    s = aisle_scene()
+    start = s.robot_start[:2]
+    opposite = (-start[0], -start[1])
+    assert _passable(list(s.boxes), start, opposite, 0.6, (-6, 6, -5, 5))
+    assert not _passable(list(s.boxes), start, (0.0, 0.0), 0.3, (-6, 6, -5, 5))  # the island is closed
+
+
+def test_yaml_round_trip(tmp_path):
+    for scene in (random_scene(2), aisle_scene()):
+        path = tmp_path / "s.yaml"
+        save_scene(scene, path)
+        assert load_scene(path) == scene
+        assert parse_scene(scene_to_yaml(scene)) == scene
+
+
+def test_shipped_scenes_load():
+    from pathlib import Path
+
+    for path in (Path(__file__).parents[3] / "core/sim/scenes").glob("*.yaml"):
+        assert load_scene(path).boxes
+
+
+@pytest.mark.parametrize(
+    ("text", "field", "line"),
+    [
+        ("boxes:\n- id: a\n  position: [1, 2, .nan]\n", "boxes.0.position.2", 3),
+        ("boxes:\n- id: a\n  position: [1, 2, 0.3]\n  size: [0.6, -1, 0.6]\n", "boxes.0.size", 4),
+        ("boxes:\n- id: a\n  position: [1, 2, 0.3]\n  colour: red\n", "boxes.0.colour", 4),
+        ("name: x\nboxes:\n- {id: a, position: [1, 2, 0.3]}\n- {id: a, position: [3, 2, 0.3]}\n", "boxes", 2),
+        ("boxes: [\n", "", 2),
+    ],
+)
+def test_bad_scene_files_name_field_and_line(text, field, line):
+    with pytest.raises(FileFormatError) as err:
+        parse_scene(text)
+    problems = err.value.problems
+    assert any(f == field and ln == line for f, ln, _ in problems), problems
+
+
+def test_box_pose_matrix():
+    from core.sim.scene import Box
+
+    T = Box("a", (1.0, 2.0, 0.3), yaw=math.pi / 2).pose()
+    np.testing.assert_allclose(T[:3, 0], [0, 1, 0], atol=1e-12)
+    np.testing.assert_allclose(T[:3, 3], [1.0, 2.0, 0.3])

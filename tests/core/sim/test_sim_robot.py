@@ -1,0 +1,59 @@
+"""SimRobot behind the RobotBackend protocol."""
+
+import numpy as np
+
+from core.params import SimParams
+from core.sim.scene import Box, Scene
+from core.sim.sim_robot import SimRobot
+from core.sim.world import SimWorld
+from core.types import RobotBackend
+
+
+def test_is_a_robot_backend(world):
+    robot = SimRobot(world)
+    assert isinstance(robot, RobotBackend)
+    robot.close()
+
+
+def test_frames_at_camera_rate(world):
+    world.load_scene(Scene((Box("a", (2.0, 0.0, 0.3)),)))
+    robot = SimRobot(world)
+    for _ in range(100):
+        robot.command(np.zeros(9), robot.time)
+        robot.step(0.01)
+    obs = robot.observe()
+    by_camera = {c: [f for f in obs.frames if f.camera == c] for c in ("hand", "base")}
+    assert 10 <= len(by_camera["hand"]) <= 11 and 10 <= len(by_camera["base"]) <= 11
+    stamps = [f.t for f in by_camera["base"]]
+    np.testing.assert_allclose(np.diff(stamps), 0.1, atol=0.003)
+    assert robot.observe().frames == ()
+    assert obs.frames[0].depth.shape == (240, 320)
+    robot.close()
+
+
+def test_stale_command_stops_the_robot(world):
+    robot = SimRobot(world, cameras=())
+    robot.command(np.array([0.5, 0, 0, 0, 0, 0, 0, 0, 0]), 0.0)
+    robot.step(0.3)
+    assert robot.observe().state.v[0] > 0.4
+    robot.step(1.0)  # no new command for longer than the timeout
+    assert abs(robot.observe().state.v[0]) < 0.02
+
+
+def test_bad_command_counted_and_stops(world):
+    robot = SimRobot(world, cameras=())
+    robot.command(np.array([0.5, 0, 0, 0, 0, 0, 0, 0, 0]), 0.0)
+    robot.step(0.3)
+    robot.command(np.array([np.nan] * 9), 0.3)
+    robot.command(np.zeros(4), 0.3)
+    robot.step(0.3)
+    assert robot.rejected_commands == 2
+    assert abs(robot.observe().state.v[0]) < 0.02
+
+
+def test_odometry_noise(robot):
+    world = SimWorld(robot, SimParams(odometry_noise_std_m=0.05))
+    sim = SimRobot(world, cameras=())
+    poses = np.array([sim.observe().odometry.pose for _ in range(400)])
+    assert 0.04 < poses[:, 0].std() < 0.06
+    assert np.all(poses[:, 2] == poses[0, 2])
