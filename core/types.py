@@ -173,6 +173,39 @@ class LocalEDF:
         return self.origin + self.voxel * (np.array(self.values.shape) - 1)
 
 
+@dataclass(frozen=True)
+class BaseReference:
+    """Base task reference over the horizon: xy (K×2, m) and yaw (K, rad) or None for position only.
+
+    K is N+1 (one row per node) or 1 (a constant reference for every node).
+    """
+
+    xy: np.ndarray
+    yaw: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class EEReference:
+    """End-effector reference over the horizon: position (K×3, m), rotation (K×3×3) or None."""
+
+    position: np.ndarray
+    rotation: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class References:
+    """What the active subtask asks of the HTMPC: the tasks' references and their priority order.
+
+    `order` lists task names ('base', 'ee') from highest priority; a name whose reference is None is
+    skipped. `switched` is True on the first step after a subtask change (more SQP iterations).
+    """
+
+    order: tuple[str, ...]
+    base: BaseReference | None = None
+    ee: EEReference | None = None
+    switched: bool = False
+
+
 class PlanStatus(StrEnum):
     """Outcome of one controller step."""
 
@@ -200,6 +233,20 @@ class Plan:
     message: str = ""
     min_h: float = float("nan")
     extras: dict[str, float] = field(default_factory=dict)
+
+    def velocity_at(self, t: float) -> np.ndarray:
+        """Joint velocity the plan commands at time t (s): v_k + u_k (t − t_k), zero after the horizon.
+
+        This is how the 100 Hz command stream is interpolated from the 10 Hz plan.
+        """
+        tau = t - self.t
+        n = self.u.shape[0]
+        if tau < 0.0:
+            return self.v[0].copy()
+        k = int(tau // self.dt)
+        if k >= n:
+            return np.zeros_like(self.v[0])
+        return self.v[k] + self.u[k] * (tau - k * self.dt)
 
 
 @runtime_checkable

@@ -1,0 +1,69 @@
+"""Writing benchmark results the way BENCH.md asks: a printed table and `bench/results/<name>.json`."""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import os
+import platform
+import sys
+from pathlib import Path
+
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+
+RESULTS_DIR = Path(__file__).parent / "results"
+
+
+def machine() -> dict[str, object]:
+    """CPU model, core count and Python version of this machine."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version()}
+
+
+def bench_args(description: str, argv: list[str] | None = None) -> argparse.Namespace:
+    """The common command line: `--quick` for the short run."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--quick", action="store_true", help="short run (under a minute) with the same figures")
+    return parser.parse_args(argv if argv is not None else sys.argv[1:])
+
+
+def percentile(samples: list[float] | np.ndarray, q: float) -> float:
+    return float(np.percentile(np.asarray(samples, dtype=float), q)) if len(samples) else float("nan")
+
+
+def write_result(name: str, figures: dict[str, float], units: dict[str, str], targets: dict[str, str] | None = None,
+                 quick: bool = False, extra: dict | None = None) -> Path:
+    """Print the figures as a table and write `bench/results/<name>.json`; returns its path."""
+    table = Table(title=f"{name}{' (quick)' if quick else ''}")
+    for col in ("figure", "value", "unit", "target"):
+        table.add_column(col)
+    targets = targets or {}
+    for key, value in figures.items():
+        table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value), units.get(key, ""),
+                      targets.get(key, ""))
+    Console().print(table)
+    RESULTS_DIR.mkdir(parents=True, exist_ok=True)
+    payload = {
+        "bench": name,
+        "when": dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "quick": quick,
+        "machine": machine(),
+        "figures": {k: float(v) for k, v in figures.items()},
+        "units": units,
+        "targets": targets,
+    }
+    if extra:
+        payload["extra"] = extra
+    path = RESULTS_DIR / f"{name}.json"
+    path.write_text(json.dumps(payload, indent=2), encoding="utf-8")
+    return path
