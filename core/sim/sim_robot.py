@@ -56,16 +56,26 @@ class SimRobot:
         self.command(np.zeros(9), self.world.time)
 
     def step(self, dt: float) -> None:
-        """Advance the simulation by dt (s) in physics steps, rendering cameras when they are due."""
+        """Advance the simulation by dt (s) in physics steps, rendering cameras when they are due and
+        dropping a stale command at its deadline."""
         h = self.world.params.timestep_s
-        n = max(1, int(round(dt / h)))
-        for _ in range(n):
-            if self.world.time - self._last_command_t > self.command_timeout_s and np.any(self._command):
-                log.warning("no command for %.2f s: stopping", self.command_timeout_s)
-                self._command = np.zeros(9)
-                self.world.set_velocity_command(self._command)
-            self.world.step(1)
+        remaining = max(1, int(round(dt / h)))
+        while remaining > 0:
+            self._check_watchdog()
+            deadline = self._last_command_t + self.command_timeout_s if np.any(self._command) else np.inf
+            due = min([*self._next_render.values(), deadline])
+            n = remaining
+            if np.isfinite(due):
+                n = int(np.clip(np.ceil((due - self.world.time) / h - 1e-6), 1, remaining))
+            self.world.step(n)
+            remaining -= n
             self._render_due()
+
+    def _check_watchdog(self) -> None:
+        if np.any(self._command) and self.world.time - self._last_command_t > self.command_timeout_s - 1e-9:
+            log.warning("no command for %.2f s: stopping", self.command_timeout_s)
+            self._command = np.zeros(9)
+            self.world.set_velocity_command(self._command)
 
     def _render_due(self) -> None:
         t = self.world.time

@@ -1,0 +1,1 @@
+"""The application: closed-loop runtime, CLI (`python -m app`), hardware bridge and the viser studio."""

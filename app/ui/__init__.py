@@ -1,0 +1,1 @@
+"""The studio's browser UI (viser). It reads runtime snapshots only (DESIGN.md)."""

@@ -1,0 +1,54 @@
+"""Draw the robot in viser: UR10 visual meshes and a Ridgeback-like base, posed from joint states."""
+
+from __future__ import annotations
+
+import logging
+from functools import cache
+
+import numpy as np
+import trimesh
+import viser
+
+from core.robot.model import RobotModel
+from core.robot.ur10_assets import ARM_LINKS, ur10_mesh
+
+log = logging.getLogger(__name__)
+
+
+@cache
+def _link_mesh(link: str) -> trimesh.Trimesh:
+    loaded = trimesh.load(ur10_mesh(link, "visual"))
+    mesh = loaded.to_geometry() if isinstance(loaded, trimesh.Scene) else loaded
+    mesh.visual = trimesh.visual.ColorVisuals(mesh, face_colors=(150, 160, 175, 255))
+    return mesh
+
+
+def wxyz(R: np.ndarray) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) of a rotation matrix."""
+    return viser.transforms.SO3.from_matrix(R).wxyz
+
+
+class RobotView:
+    """Scene nodes of the robot under `/robot`; `update(q)` moves them."""
+
+    def __init__(self, server: viser.ViserServer, robot: RobotModel, name: str = "/robot") -> None:
+        self.robot = robot
+        self.frames: dict[str, viser.FrameHandle] = {}
+        lx, ly, lz = robot.params.base_size_m
+        for link in robot.link_names:
+            frame = server.scene.add_frame(f"{name}/{link}", show_axes=False)
+            self.frames[link] = frame
+            if link == "mobile_base":
+                server.scene.add_box(f"{name}/{link}/body", color=(45, 45, 50), dimensions=(lx, ly, lz - 0.08),
+                                     position=(0.0, 0.0, lz / 2 + 0.04))
+                server.scene.add_box(f"{name}/{link}/rack", color=(60, 60, 66), dimensions=(0.4, 0.5, 0.6),
+                                     position=(-0.25, 0.0, lz + 0.3))
+            elif link in ARM_LINKS:
+                server.scene.add_mesh_trimesh(f"{name}/{link}/mesh", _link_mesh(link))
+
+    def update(self, q: np.ndarray) -> None:
+        """Pose every link from the joint state q[9]."""
+        for link, T in self.robot.link_poses(q).items():
+            frame = self.frames[link]
+            frame.position = T[:3, 3]
+            frame.wxyz = wxyz(T[:3, :3])

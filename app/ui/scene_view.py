@@ -1,0 +1,39 @@
+"""Draw the simulated boxes in viser, adding, moving and removing nodes as the scene changes."""
+
+from __future__ import annotations
+
+import math
+
+import viser
+
+from core.sim.scene import Box
+
+BOX_RGB = (194, 153, 107)
+
+
+class SceneView:
+    """Box nodes under `/scene/boxes/<id>`, kept in step with the world's boxes."""
+
+    def __init__(self, server: viser.ViserServer) -> None:
+        self.server = server
+        self._nodes: dict[str, tuple[Box, viser.BoxHandle]] = {}
+
+    def update(self, boxes: tuple[Box, ...]) -> None:
+        """Make the drawn boxes equal to `boxes` (only changed ones are sent)."""
+        wanted = {b.id: b for b in boxes}
+        for box_id in list(self._nodes):
+            if box_id not in wanted:
+                self._nodes.pop(box_id)[1].remove()
+        for box_id, box in wanted.items():
+            old = self._nodes.get(box_id)
+            if old is not None and old[0] == box:
+                continue
+            if old is not None and old[0].size == box.size:
+                handle = old[1]
+            else:
+                if old is not None:
+                    old[1].remove()
+                handle = self.server.scene.add_box(f"/scene/boxes/{box_id}", color=BOX_RGB, dimensions=box.size)
+            handle.position = box.position
+            handle.wxyz = (math.cos(box.yaw / 2), 0.0, 0.0, math.sin(box.yaw / 2))
+            self._nodes[box_id] = (box, handle)
