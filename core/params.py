@@ -123,3 +123,21 @@ class MappingParams:
     theta_cutoff_m: float = 1.8
     theta_zero_m: float = 0.05
     range_m: float = 3.0
+
+
+@dataclass(frozen=True)
+class SequencerParams:
+    """Turning the active subtask into HTMPC references (tasks/), and base path planning."""
+
+    nominal_speed_mps: float = 0.6
+    """Speed at which base references advance along the planned path."""
+    lookahead_m: float = 1.5
+    """In navigation the hand camera looks at the path point this far ahead."""
+    grid_cell_m: float = 0.1
+    inflation_m: float = 0.6
+    """Obstacles are grown by this radius for A* (base sphere 0.55 m plus a little)."""
+    obstacle_z_m: tuple[float, float] = (0.05, 2.0)
+    """Occupied points between these heights block the base."""
+    replan_period_s: float = 1.0
+    goal_slowdown_m: float = 0.8
+    """Within this distance of the final goal the reference stops advancing past it."""

@@ -47,8 +47,9 @@ CAMERAS: tuple[CameraMount, ...] = (
 )
 """The paper's two depth cameras: one on the wrist (hand), one on the base looking forward."""
 
-READY_Q = np.array([0.0, 0.0, 0.0, 0.0, -1.0, 1.7, -0.7, 1.5708, 0.0])
-"""A ready pose: arm folded over the base, hand camera looking ahead and down."""
+READY_Q = np.array([0.0, 0.0, 0.0, 0.0, -1.6, 2.2, -0.2, np.pi / 2, np.pi])
+"""A ready pose: arm folded in front of the base (EE at 0.76 m ahead, 0.93 m up), hand camera upright
+looking ahead and 23° down."""
 
 
 def _body_inertia(mass: float, size: tuple[float, float, float], z: float) -> pin.Inertia:

@@ -1,0 +1,114 @@
+"""Base path planning: A* on the 2D occupancy through a subtask's waypoints, then smoothing.
+
+A* is 8-connected with the octile heuristic. A start inside an inflated obstacle (the robot already
+close to a box) searches outward to the nearest free cell first, so the planner never refuses to
+leave. The path is shortcut by line of sight and resampled evenly.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+
+import numpy as np
+
+from tasks.occupancy import OccupancyGrid
+
+_MOVES = [(-1, 0, 1.0), (1, 0, 1.0), (0, -1, 1.0), (0, 1, 1.0),
+          (-1, -1, math.sqrt(2)), (-1, 1, math.sqrt(2)), (1, -1, math.sqrt(2)), (1, 1, math.sqrt(2))]
+
+
+class NoPathError(RuntimeError):
+    """No collision-free base path exists on the current map."""
+
+
+def _nearest_free(grid: OccupancyGrid, cell: tuple[int, int]) -> tuple[int, int]:
+    free = np.argwhere(~grid.blocked)
+    if len(free) == 0:
+        raise NoPathError("the whole map is blocked")
+    k = int(np.argmin(np.sum((free - np.array(cell)) ** 2, axis=1)))
+    return int(free[k, 0]), int(free[k, 1])
+
+
+def astar(grid: OccupancyGrid, start: tuple[int, int], goal: tuple[int, int]) -> list[tuple[int, int]]:
+    """Cells from start to goal (both free) on the 8-connected grid; raises `NoPathError`."""
+    blocked = grid.blocked
+    nx, ny = blocked.shape
+
+    def h(c: tuple[int, int]) -> float:
+        dx, dy = abs(c[0] - goal[0]), abs(c[1] - goal[1])
+        return max(dx, dy) + (math.sqrt(2) - 1) * min(dx, dy)
+
+    g = {start: 0.0}
+    parent: dict[tuple[int, int], tuple[int, int]] = {}
+    frontier = [(h(start), 0.0, start)]
+    closed = set()
+    while frontier:
+        _, cost, cur = heapq.heappop(frontier)
+        if cur == goal:
+            path = [cur]
+            while cur in parent:
+                cur = parent[cur]
+                path.append(cur)
+            return path[::-1]
+        if cur in closed:
+            continue
+        closed.add(cur)
+        for dx, dy, step in _MOVES:
+            nxt = (cur[0] + dx, cur[1] + dy)
+            if not (0 <= nxt[0] < nx and 0 <= nxt[1] < ny) or blocked[nxt]:
+                continue
+            if dx and dy and (blocked[cur[0] + dx, cur[1]] or blocked[cur[0], cur[1] + dy]):
+                continue  # no corner cutting
+            new = cost + step
+            if new < g.get(nxt, math.inf):
+                g[nxt] = new
+                parent[nxt] = cur
+                heapq.heappush(frontier, (new + h(nxt), new, nxt))
+    raise NoPathError("no collision-free base path to the goal on the current map")
+
+
+def shortcut(grid: OccupancyGrid, points: np.ndarray) -> np.ndarray:
+    """Greedy line-of-sight shortcutting of a polyline."""
+    out = [points[0]]
+    i = 0
+    while i < len(points) - 1:
+        j = len(points) - 1
+        while j > i + 1 and not grid.segment_free(points[i], points[j]):
+            j -= 1
+        out.append(points[j])
+        i = j
+    return np.array(out)
+
+
+def resample(points: np.ndarray, spacing_m: float) -> np.ndarray:
+    """Evenly spaced points along a polyline (first and last kept)."""
+    if len(points) < 2:
+        return np.asarray(points, float).reshape(-1, 2)
+    seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    if s[-1] < 1e-9:
+        return points[:1]
+    samples = np.linspace(0.0, s[-1], max(2, int(np.ceil(s[-1] / spacing_m)) + 1))
+    return np.stack([np.interp(samples, s, points[:, 0]), np.interp(samples, s, points[:, 1])], axis=1)
+
+
+def plan_path(grid: OccupancyGrid, start_xy: np.ndarray, goals_xy: list[np.ndarray],
+              spacing_m: float = 0.1) -> np.ndarray:
+    """Smoothed path (P×2) from start through each goal in order. Goals inside obstacles raise."""
+    pieces = [np.asarray(start_xy, float)[None]]
+    here = np.asarray(start_xy, float)
+    for goal in goals_xy:
+        goal = np.asarray(goal, float)
+        g_cell = grid.cell(goal)
+        if grid.blocked[g_cell]:
+            raise NoPathError(f"goal ({goal[0]:.2f}, {goal[1]:.2f}) is too close to an obstacle for the base")
+        s_cell = grid.cell(here)
+        if grid.blocked[s_cell]:
+            s_cell = _nearest_free(grid, s_cell)
+        cells = astar(grid, s_cell, g_cell)
+        pts = np.array([grid.centre(c) for c in cells])
+        pts[0], pts[-1] = (here if grid.is_free(here) else pts[0]), goal
+        pieces.append(shortcut(grid, pts)[1:])
+        here = goal
+    return resample(np.concatenate(pieces), spacing_m)
