@@ -1,0 +1,110 @@
+"""Build HTMPC references (`core.types.References`) for the active subtask over the horizon.
+
+Base subtasks: the base reference advances along the planned path at `nominal_speed_mps`, heading
+along the path, turning to the goal yaw near the end; the EE reference keeps the hand at its ready
+offset on the reference base and aims the hand camera at the path point `lookahead_m` ahead.
+EE subtasks: the EE reference is the (constant) target pose; the base reference holds the pose the
+base had when the subtask began.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from core.params import SequencerParams
+from core.types import BaseReference, EEReference, References
+
+
+def path_arclength(path: np.ndarray) -> np.ndarray:
+    """Cumulative arc length (m) at each vertex of a P×2 path."""
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+
+
+def project_on_path(path: np.ndarray, s: np.ndarray, xy: np.ndarray, s_min: float = 0.0) -> float:
+    """Arc length of the path point nearest to xy, not behind `s_min` (progress never goes back)."""
+    if len(path) == 1:
+        return 0.0
+    a, b = path[:-1], path[1:]
+    ab = b - a
+    t = np.clip(np.einsum("ij,ij->i", xy - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0.0, 1.0)
+    proj = a + t[:, None] * ab
+    d = np.linalg.norm(proj - xy, axis=1)
+    cand = s[:-1] + t * np.diff(s)
+    d = np.where(cand + 1e-9 >= s_min - 0.5, d, np.inf)  # allow small back-steps, never large ones
+    k = int(np.argmin(d))
+    return float(cand[k])
+
+
+def point_at(path: np.ndarray, s: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """Points (K×2) at arc lengths `at` (clamped to the path)."""
+    at = np.clip(at, 0.0, s[-1])
+    return np.stack([np.interp(at, s, path[:, 0]), np.interp(at, s, path[:, 1])], axis=-1)
+
+
+def heading_at(path: np.ndarray, s: np.ndarray, at: np.ndarray, eps: float = 0.15) -> np.ndarray:
+    """Path tangent heading (rad) at arc lengths `at`."""
+    if s[-1] < 1e-6:
+        return np.zeros_like(at)
+    ahead = point_at(path, s, np.minimum(at + eps, s[-1]))
+    behind = point_at(path, s, np.maximum(at - eps, 0.0))
+    d = ahead - behind
+    return np.arctan2(d[:, 1], d[:, 0])
+
+
+def unwrap_near(angles: np.ndarray, reference: float) -> np.ndarray:
+    """Angles shifted by multiples of 2π to lie within π of the previous one, starting near `reference`."""
+    out = np.empty_like(angles)
+    prev = reference
+    for i, a in enumerate(angles):
+        prev = prev + (a - prev + np.pi) % (2 * np.pi) - np.pi
+        out[i] = prev
+    return out
+
+
+def look_at_rotation(eye: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """EE rotation whose x axis (the hand camera's optical axis) points from eye to target, z up."""
+    x = target - eye
+    x = x / max(np.linalg.norm(x), 1e-9)
+    up = np.array([0.0, 0.0, 1.0])
+    z = up - x * (x @ up)
+    if np.linalg.norm(z) < 1e-6:
+        z = np.array([1.0, 0.0, 0.0])
+    z = z / np.linalg.norm(z)
+    y = np.cross(z, x)
+    return np.stack([x, y, z], axis=1)
+
+
+def navigation_references(path: np.ndarray, s_now: float, yaw_now: float, goal_yaw: float | None,
+                          ee_offset_base: np.ndarray, params: SequencerParams, n_nodes: int, dt: float,
+                          order: tuple[str, ...], switched: bool) -> References:
+    """References for a base subtask along `path` from arc length `s_now`."""
+    s = path_arclength(path)
+    at = s_now + params.nominal_speed_mps * dt * np.arange(n_nodes + 1)
+    xy = point_at(path, s, at)
+    yaw = heading_at(path, s, at)
+    remaining = s[-1] - at
+    if goal_yaw is not None:
+        yaw = np.where(remaining < params.goal_slowdown_m, goal_yaw, yaw)
+    elif s[-1] < params.goal_slowdown_m:
+        yaw = np.full_like(at, yaw_now)
+    yaw = unwrap_near(yaw, yaw_now)
+    c, sn = np.cos(yaw), np.sin(yaw)
+    ee_pos = np.stack([xy[:, 0] + c * ee_offset_base[0] - sn * ee_offset_base[1],
+                       xy[:, 1] + sn * ee_offset_base[0] + c * ee_offset_base[1],
+                       np.full_like(yaw, ee_offset_base[2])], axis=-1)
+    look = point_at(path, s, at + params.lookahead_m)
+    heading = np.stack([c, sn], axis=-1)
+    look = np.where((s[-1] - at < params.lookahead_m)[:, None], xy + params.lookahead_m * heading, look)
+    look3 = np.column_stack([look, np.full(len(look), 0.3)])
+    ee_rot = np.stack([look_at_rotation(p, t) for p, t in zip(ee_pos, look3, strict=True)])
+    return References(order=order, base=BaseReference(xy=xy, yaw=yaw), ee=EEReference(ee_pos, ee_rot),
+                      switched=switched)
+
+
+def manipulation_references(position: np.ndarray, rotation: np.ndarray | None, hold_base: np.ndarray,
+                            order: tuple[str, ...], switched: bool) -> References:
+    """References for an EE subtask: a constant EE target, the base held where the subtask began."""
+    base = BaseReference(xy=np.asarray(hold_base[:2], float)[None], yaw=np.array([hold_base[2]]))
+    rot = None if rotation is None else np.asarray(rotation, float)[None]
+    return References(order=order, base=base, ee=EEReference(np.asarray(position, float)[None], rot),
+                      switched=switched)

@@ -1,0 +1,217 @@
+"""The sequencer: runs a `TaskSequence` subtask by subtask and hands the HTMPC its references.
+
+Each call to `update(state, occupied_points, t)` checks the active subtask (tolerance held for its
+dwell time → done; past its timeout → failed, and the sequence stops), re-plans the base path when
+the map changed or every `replan_period_s`, and returns the `References` for the controller, or None
+when nothing is active (finished, failed or empty): the runtime then stops the robot.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, replace
+from enum import StrEnum
+
+import numpy as np
+
+from core.params import SequencerParams
+from core.robot.model import READY_Q, RobotModel
+from core.types import References, RobotState
+from tasks.occupancy import OccupancyGrid
+from tasks.path_planner import NoPathError, plan_path
+from tasks.references import manipulation_references, navigation_references, path_arclength, project_on_path
+from tasks.schema import BaseSubtask, EESubtask, TaskSequence
+
+log = logging.getLogger(__name__)
+
+
+class Outcome(StrEnum):
+    PENDING = "pending"
+    ACTIVE = "active"
+    DONE = "done"
+    FAILED = "failed"
+
+
+@dataclass(frozen=True)
+class SubtaskProgress:
+    """How one subtask is going: errors to its goal (m, deg), time active and time held in tolerance."""
+
+    index: int
+    name: str
+    kind: str
+    outcome: Outcome = Outcome.PENDING
+    elapsed_s: float = 0.0
+    held_s: float = 0.0
+    position_error_m: float = float("nan")
+    orientation_error_deg: float = float("nan")
+    message: str = ""
+
+
+def _angle_between(R_a: np.ndarray, R_b: np.ndarray) -> float:
+    cos = (np.trace(R_a.T @ R_b) - 1.0) / 2.0
+    return math.degrees(math.acos(float(np.clip(cos, -1.0, 1.0))))
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+class Sequencer:
+    """Owns the progress through one sequence; pure function of the inputs it is given."""
+
+    def __init__(self, robot: RobotModel, sequence: TaskSequence, params: SequencerParams | None = None,
+                 n_nodes: int = 10, dt: float = 0.3,
+                 bounds: tuple[float, float, float, float] = (-8.0, 8.0, -8.0, 8.0)) -> None:
+        self.robot = robot
+        self.sequence = sequence
+        self.params = params or SequencerParams()
+        self.n_nodes, self.dt, self.bounds = n_nodes, dt, bounds
+        ready = robot.ee_pose(np.concatenate([[0.0, 0.0, 0.0], READY_Q[3:]]))
+        self.ee_offset_base = ready[:3, 3]
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the first subtask, nothing done."""
+        self.index = 0
+        self.progress = [SubtaskProgress(i, s.name or f"{s.kind} {i + 1}", s.kind)
+                         for i, s in enumerate(self.sequence.subtasks)]
+        self._started_t: float | None = None
+        self._held_since: float | None = None
+        self._switched = True
+        self.path: np.ndarray | None = None
+        self._s_progress = 0.0
+        self._plan_t = -math.inf
+        self._grid_sig: int | None = None
+        self._hold_base: np.ndarray | None = None
+        self._ee_waypoint = 0
+
+    @property
+    def finished(self) -> bool:
+        return bool(self.progress) and all(p.outcome == Outcome.DONE for p in self.progress)
+
+    @property
+    def failed(self) -> bool:
+        return any(p.outcome == Outcome.FAILED for p in self.progress)
+
+    @property
+    def active(self) -> BaseSubtask | EESubtask | None:
+        if self.failed or self.index >= len(self.sequence.subtasks):
+            return None
+        return self.sequence.subtasks[self.index]
+
+    def status_line(self) -> str:
+        """One line for the operator: the active subtask and how it is going, or the outcome."""
+        if not self.sequence.subtasks:
+            return "no subtasks"
+        if self.failed:
+            p = next(p for p in self.progress if p.outcome == Outcome.FAILED)
+            return f"failed: {p.name}: {p.message}"
+        if self.finished:
+            return f"sequence finished ({len(self.progress)} subtasks)"
+        p = self.progress[self.index]
+        return (f"{self.index + 1}/{len(self.progress)} {p.name}: {p.position_error_m:.2f} m, "
+                f"{p.orientation_error_deg:.0f}° after {p.elapsed_s:.1f} s")
+
+    # --- the loop ------------------------------------------------------------------------------
+
+    def update(self, state: RobotState, occupied_points: np.ndarray | None, t: float) -> References | None:
+        """Advance the state machine and return references for the active subtask (None: stop)."""
+        sub = self.active
+        if sub is None:
+            return None
+        if self._started_t is None:
+            self._begin(state, t)
+        pos_err, ori_err = self._errors(sub, state)
+        elapsed = t - self._started_t
+        tol = sub.tolerance
+        within = pos_err <= tol.position_m and (math.isnan(ori_err) or ori_err <= tol.orientation_deg)
+        if isinstance(sub, EESubtask) and self._ee_waypoint < len(sub.waypoints):
+            within = False  # intermediate EE waypoints are passed, not dwelt at
+        self._held_since = (self._held_since if self._held_since is not None else t) if within else None
+        held = 0.0 if self._held_since is None else t - self._held_since
+        self._set_progress(Outcome.ACTIVE, elapsed, held, pos_err, ori_err)
+        if within and held >= sub.dwell_s - 1e-9:
+            self._set_progress(Outcome.DONE, elapsed, held, pos_err, ori_err, "reached")
+            log.info("subtask %d %s done after %.1f s", self.index, self.progress[self.index].name, elapsed)
+            self.index += 1
+            self._started_t = None
+            return self.update(state, occupied_points, t)
+        if elapsed > sub.timeout_s:
+            msg = f"timed out after {sub.timeout_s:.0f} s, {pos_err:.2f} m from the goal"
+            self._set_progress(Outcome.FAILED, elapsed, held, pos_err, ori_err, msg)
+            log.warning("subtask %d failed: %s", self.index, msg)
+            return None
+        refs = self._references(sub, state, occupied_points, t)
+        self._switched = False
+        return refs
+
+    def _begin(self, state: RobotState, t: float) -> None:
+        self._started_t = t
+        self._held_since = None
+        self._switched = True
+        self.path = None
+        self._s_progress = 0.0
+        self._plan_t = -math.inf
+        self._grid_sig = None
+        self._hold_base = state.q[:3].copy()
+        self._ee_waypoint = 0
+
+    def _set_progress(self, outcome: Outcome, elapsed: float, held: float, pos: float, ori: float,
+                      message: str | None = None) -> None:
+        p = self.progress[self.index]
+        self.progress[self.index] = replace(
+            p, outcome=outcome, elapsed_s=elapsed, held_s=held, position_error_m=pos, orientation_error_deg=ori,
+            message=p.message if message is None else message)
+
+    def _errors(self, sub: BaseSubtask | EESubtask, state: RobotState) -> tuple[float, float]:
+        goal = sub.goal()
+        if isinstance(sub, BaseSubtask):
+            pos = float(np.hypot(*(state.q[:2] - goal.xy())))
+            ori = math.nan if goal.yaw_rad is None else abs(math.degrees(_wrap(state.q[2] - goal.yaw_rad)))
+            return pos, ori
+        T = self.robot.ee_pose(state.q)
+        target = sub.path()[min(self._ee_waypoint, len(sub.path()) - 1)]
+        pos = float(np.linalg.norm(T[:3, 3] - np.array(target.position)))
+        if self._ee_waypoint < len(sub.waypoints) and pos <= sub.tolerance.position_m:
+            self._ee_waypoint += 1
+        R = goal.rotation()
+        ori = math.nan if R is None else _angle_between(T[:3, :3], R)
+        pos_goal = float(np.linalg.norm(T[:3, 3] - np.array(goal.position)))
+        return pos_goal, ori
+
+    def _references(self, sub: BaseSubtask | EESubtask, state: RobotState, occupied: np.ndarray | None,
+                    t: float) -> References:
+        order = tuple(sub.order)
+        if isinstance(sub, EESubtask):
+            target = sub.path()[min(self._ee_waypoint, len(sub.path()) - 1)]
+            return manipulation_references(np.array(target.position), target.rotation(), self._hold_base, order,
+                                           self._switched)
+        self._maybe_replan(sub, state, occupied, t)
+        s = path_arclength(self.path)
+        self._s_progress = project_on_path(self.path, s, state.q[:2], self._s_progress)
+        return navigation_references(self.path, self._s_progress, float(state.q[2]), sub.goal().yaw_rad,
+                                     self.ee_offset_base, self.params, self.n_nodes, self.dt, order, self._switched)
+
+    def _maybe_replan(self, sub: BaseSubtask, state: RobotState, occupied: np.ndarray | None, t: float) -> None:
+        grid = None
+        if occupied is not None:
+            p = self.params
+            grid = OccupancyGrid.from_points(occupied, self.bounds, p.grid_cell_m, p.inflation_m, p.obstacle_z_m)
+        sig = None if grid is None else grid.signature()
+        due = t - self._plan_t >= self.params.replan_period_s
+        if self.path is not None and sig == self._grid_sig and not due:
+            return
+        goals = [w.xy() for w in sub.path()]
+        try:
+            path = plan_path(grid, state.q[:2], goals) if grid is not None else np.array([state.q[:2], *goals])
+            message = ""
+        except NoPathError as err:
+            path = np.array([state.q[:2], *goals])
+            message = f"{err}; heading straight, the MPC keeps clear"
+        self.path = path
+        self._s_progress = 0.0
+        self._plan_t, self._grid_sig = t, sig
+        p = self.progress[self.index]
+        if message != p.message:
+            self.progress[self.index] = replace(p, message=message)

@@ -1,0 +1,50 @@
+import numpy as np
+import pytest
+
+from core.sim.ground_truth import box_signed_distance
+from core.sim.scene import Box, random_scene
+from tasks.occupancy import OccupancyGrid
+from tasks.path_planner import NoPathError, plan_path
+
+
+def surface_points(boxes, n=600, seed=0):
+    rng = np.random.default_rng(seed)
+    return np.concatenate([rng.uniform(-0.5, 0.5, (n, 3)) * b.size + b.position for b in boxes])
+
+
+def test_path_avoids_inflated_boxes_in_random_scenes():
+    for seed in range(5):
+        scene = random_scene(seed)
+        grid = OccupancyGrid.from_points(surface_points(scene.boxes), (-6, 6, -5, 5), 0.1, 0.6)
+        path = plan_path(grid, np.array(scene.robot_start[:2]), [np.array(scene.goal)])
+        np.testing.assert_allclose(path[0], scene.robot_start[:2])
+        np.testing.assert_allclose(path[-1], scene.goal)
+        pts = np.column_stack([path, np.full(len(path), 0.3)])
+        clearance = np.min([box_signed_distance(pts, b) for b in scene.boxes], axis=0)
+        assert clearance.min() > 0.4, seed  # inflation 0.6 minus grid discretisation (cell diagonal 0.14)
+        assert np.all(np.linalg.norm(np.diff(path, axis=0), axis=1) <= 0.1 + 1e-9)
+
+
+def test_waypoints_are_visited_in_order():
+    grid = OccupancyGrid.from_points(np.zeros((0, 3)), (-5, 5, -5, 5), 0.1, 0.6)
+    path = plan_path(grid, np.zeros(2), [np.array([2.0, 0.0]), np.array([2.0, 2.0])])
+    d_first = np.linalg.norm(path - [2.0, 0.0], axis=1)
+    k = int(np.argmin(d_first))
+    assert d_first[k] < 0.06 and np.all(path[k:, 1] >= -1e-9)
+    assert len(path) * 0.1 == pytest.approx(4.0, abs=0.25)  # straight legs after shortcutting
+
+
+def test_start_inside_inflation_can_leave_and_blocked_goal_raises():
+    box = Box("b", (1.0, 0.0, 0.3))
+    grid = OccupancyGrid.from_points(surface_points([box]), (-5, 5, -5, 5), 0.1, 0.6)
+    path = plan_path(grid, np.array([0.3, 0.0]), [np.array([-2.0, 0.0])])
+    assert np.linalg.norm(path[-1] - [-2.0, 0.0]) < 1e-9
+    with pytest.raises(NoPathError, match="too close"):
+        plan_path(grid, np.array([-2.0, 0.0]), [np.array([1.0, 0.0])])
+
+
+def test_enclosed_goal_has_no_path():
+    ring = [Box(f"r{i}", (2.0 * np.cos(a), 2.0 * np.sin(a), 0.3)) for i, a in enumerate(np.linspace(0, 2 * np.pi, 24))]
+    grid = OccupancyGrid.from_points(surface_points(ring), (-5, 5, -5, 5), 0.1, 0.3)
+    with pytest.raises(NoPathError, match="no collision-free"):
+        plan_path(grid, np.array([4.0, 0.0]), [np.array([0.0, 0.0])])

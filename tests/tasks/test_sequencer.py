@@ -1,0 +1,87 @@
+"""The sequencer's state machine and references, driven by hand-made robot states."""
+
+import math
+
+import numpy as np
+import pytest
+
+from core.robot.model import READY_Q
+from core.types import RobotState
+from tasks import BasePose, BaseSubtask, EEPose, EESubtask, TaskSequence, Tolerance
+from tasks.sequencer import Outcome, Sequencer
+
+
+def state_at(x: float, y: float, yaw: float = 0.0, arm=None) -> RobotState:
+    q = READY_Q.copy()
+    q[:3] = x, y, yaw
+    if arm is not None:
+        q[3:] = arm
+    return RobotState(0.0, q, np.zeros(9))
+
+
+def test_base_subtask_references_follow_the_path(robot):
+    seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=4.0, y=0.0, yaw_deg=90.0))])
+    s = Sequencer(robot, seq)
+    refs = s.update(state_at(0.0, 0.0), np.zeros((0, 3)), 0.0)
+    assert refs.order == ("base", "ee") and refs.switched
+    assert refs.base.xy.shape == (11, 2) and refs.ee.position.shape == (11, 3) and refs.ee.rotation.shape == (11, 3, 3)
+    steps = np.linalg.norm(np.diff(refs.base.xy, axis=0), axis=1)
+    np.testing.assert_allclose(steps, 0.6 * 0.3, atol=1e-6)  # nominal speed × dt
+    np.testing.assert_allclose(refs.base.yaw, 0.0, atol=1e-6)  # heading along the path
+    # hand camera looks ahead and down at the path
+    axis = refs.ee.rotation[0][:, 0]
+    assert axis[0] > 0.5 and axis[2] < 0.0
+    for R in refs.ee.rotation:
+        np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-9)
+    assert not s.update(state_at(0.1, 0.0), np.zeros((0, 3)), 0.1).switched
+    near = s.update(state_at(3.6, 0.0), np.zeros((0, 3)), 0.2)
+    assert near.base.yaw[-1] == pytest.approx(math.pi / 2)  # goal yaw near the end
+
+
+def test_completion_needs_tolerance_and_dwell(robot):
+    target = EEPose(position=(1.0, 0.2, 0.9))
+    seq = TaskSequence(subtasks=[EESubtask(target=target, dwell_s=1.0, tolerance=Tolerance(position_m=0.5))])
+    s = Sequencer(robot, seq)
+    st = state_at(0.0, 0.0)
+    assert s.update(st, None, 0.0) is not None
+    assert s.progress[0].outcome == Outcome.ACTIVE
+    assert s.update(st, None, 0.5) is not None
+    assert s.update(st, None, 1.01) is None
+    assert s.finished and s.progress[0].outcome == Outcome.DONE
+    assert "finished" in s.status_line()
+
+
+def test_timeout_fails_with_clear_status(robot):
+    seq = TaskSequence(subtasks=[BaseSubtask(name="far", target=BasePose(x=10.0, y=0.0), timeout_s=5.0),
+                                 BaseSubtask(target=BasePose(x=0.0, y=0.0))])
+    s = Sequencer(robot, seq)
+    assert s.update(state_at(0.0, 0.0), None, 0.0) is not None
+    assert s.update(state_at(0.0, 0.0), None, 5.1) is None
+    assert s.failed and s.progress[0].outcome == Outcome.FAILED and s.progress[1].outcome == Outcome.PENDING
+    assert "timed out" in s.status_line() and "far" in s.status_line()
+
+
+def test_manipulation_holds_the_base_and_orders_ee_first(robot):
+    seq = TaskSequence(subtasks=[EESubtask(target=EEPose(position=(2.0, 0.0, 0.8), rpy_deg=(0, 90, 0)))])
+    s = Sequencer(robot, seq)
+    refs = s.update(state_at(0.5, -0.2, 0.3), None, 0.0)
+    assert refs.order == ("ee", "base")
+    np.testing.assert_allclose(refs.base.xy[0], [0.5, -0.2])
+    np.testing.assert_allclose(refs.ee.rotation[0][:, 0], [0, 0, -1], atol=1e-12)
+
+
+def test_path_replans_around_new_obstacles(robot):
+    seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=4.0, y=0.0))])
+    s = Sequencer(robot, seq)
+    s.update(state_at(0.0, 0.0), np.zeros((0, 3)), 0.0)
+    straight = s.path.copy()
+    rng = np.random.default_rng(0)
+    wall = rng.uniform([1.8, -0.8, 0.1], [2.2, 0.8, 0.6], (500, 3))
+    s.update(state_at(0.0, 0.0), wall, 0.1)  # map changed: re-planned at once
+    assert np.abs(s.path[:, 1]).max() > 1.0 > np.abs(straight[:, 1]).max()
+
+
+def test_empty_sequence_returns_nothing(robot):
+    s = Sequencer(robot, TaskSequence())
+    assert s.update(state_at(0, 0), None, 0.0) is None
+    assert s.status_line() == "no subtasks"
