@@ -22,7 +22,7 @@ import numpy as np
 from core.params import SimParams
 from core.robot.model import RobotModel
 from core.sim.scene import Box, Scene
-from core.sim.world_spec import PARKED_Z_M, add_box_slots, build_world_spec
+from core.sim.world_spec import PARKED_Z_M, add_box_slots, build_world_spec, wall_boxes
 from core.types import RobotState
 
 log = logging.getLogger(__name__)
@@ -158,6 +158,10 @@ class SimWorld:
         """The boxes now in the world."""
         with self.lock:
             return tuple(self._boxes.values())
+
+    def obstacles(self) -> tuple[Box, ...]:
+        """Everything the robot can hit: the boxes and the optional walls (for ground-truth queries)."""
+        return self.boxes() + wall_boxes(self.params)
 
     def box(self, box_id: str) -> Box:
         with self.lock:

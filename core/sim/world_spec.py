@@ -15,6 +15,7 @@ import pinocchio as pin
 from core.params import SimParams
 from core.robot.model import RobotModel
 from core.robot.ur10_assets import ARM_LINKS, ur10_mesh
+from core.sim.scene import Box
 
 ROBOT_CONTYPE, BOX_CONAFFINITY = 1, 1
 """Robot geoms collide with boxes only (no self-collision, no floor contact); boxes never with boxes."""
@@ -99,11 +100,20 @@ def _add_room(spec: mujoco.MjSpec, params: SimParams) -> None:
     spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=(half, half, 0.1),
                             rgba=(0.82, 0.83, 0.85, 1), contype=0, conaffinity=0)
     spec.worldbody.add_light(name="sun", pos=(0, 0, 6), dir=(0, 0, -1), type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL)
-    if params.walls:
-        for i, (x, y, sx, sy) in enumerate([(half, 0, 0.05, half), (-half, 0, 0.05, half),
-                                            (0, half, half, 0.05), (0, -half, half, 0.05)]):
-            spec.worldbody.add_geom(name=f"wall_{i}", type=mujoco.mjtGeom.mjGEOM_BOX, size=(sx, sy, 0.6),
-                                    pos=(x, y, 0.6), rgba=(0.9, 0.9, 0.88, 1), contype=0, conaffinity=BOX_CONAFFINITY)
+    for i, wall in enumerate(wall_boxes(params)):
+        spec.worldbody.add_geom(name=f"wall_{i}", type=mujoco.mjtGeom.mjGEOM_BOX, size=np.array(wall.size) / 2,
+                                pos=wall.position, rgba=(0.9, 0.9, 0.88, 1), contype=0, conaffinity=BOX_CONAFFINITY)
+
+
+def wall_boxes(params: SimParams) -> tuple[Box, ...]:
+    """The optional room walls as boxes (1.2 m high, 0.1 m thick), for geometry and ground truth alike."""
+    if not params.walls:
+        return ()
+    half, t, h = params.room_half_size_m, 0.1, 1.2
+    return (Box("wall_east", (half, 0.0, h / 2), (t, 2 * half, h)),
+            Box("wall_west", (-half, 0.0, h / 2), (t, 2 * half, h)),
+            Box("wall_north", (0.0, half, h / 2), (2 * half, t, h)),
+            Box("wall_south", (0.0, -half, h / 2), (2 * half, t, h)))
 
 
 def add_box_slots(spec: mujoco.MjSpec, first: int, count: int) -> None:

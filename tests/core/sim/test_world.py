@@ -131,3 +131,16 @@ def test_distance_and_collision_events(world):
     assert world.collisions and world.collisions[0].box_id == "wall"
     assert world.robot_box_distance()[0] < 0.01
     assert world.state().q[0] < 1.6  # the box stopped the robot
+
+
+def test_walls_are_obstacles(robot):
+    from core.params import SimParams
+    from core.sim.ground_truth import scene_signed_distance
+
+    world = SimWorld(robot, SimParams(walls=True, room_half_size_m=4.0))
+    assert {b.id for b in world.obstacles()} == {"wall_east", "wall_west", "wall_north", "wall_south"}
+    d = scene_signed_distance(np.array([[3.0, 0.0, 0.5]]), world.obstacles())
+    assert d[0] == pytest.approx(0.95)
+    world.set_robot(np.r_[3.0, 0.0, 0.0, READY_Q[3:]])
+    run(world, [1.0, 0, 0, 0, 0, 0, 0, 0, 0], 2.0)
+    assert any(c.box_id == "wall" for c in world.collisions)
