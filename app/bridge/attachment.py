@@ -1,0 +1,59 @@
+"""`RuntimeAttachment`: the runtime the operator API controls, and the latest snapshot it published.
+
+The bridge reads the runtime the way the UI does, through published `Snapshot`s. In live mode the
+runtime publishes at 20 Hz; when no snapshot newer than `max_age_s` is at hand (lockstep, or right
+after a run-control request) the attachment asks the runtime to publish one, which every subscriber
+receives (so no operator message is taken from the UI).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import TYPE_CHECKING
+
+from app.snapshot import RunState, Snapshot
+
+if TYPE_CHECKING:
+    from app.runtime import Runtime
+
+
+class RuntimeAttachment:
+    """A runtime plus a cache of its latest published snapshot."""
+
+    def __init__(self, runtime: Runtime, max_age_s: float = 0.2) -> None:
+        self.runtime = runtime
+        self.max_age_s = max_age_s
+        self._lock = threading.Lock()
+        self._latest: Snapshot | None = None
+        self._received_at = 0.0
+        self._unsubscribe = runtime.subscribe(self._receive)
+
+    def _receive(self, snap: Snapshot) -> None:
+        with self._lock:
+            self._latest, self._received_at = snap, time.monotonic()
+
+    def snapshot(self) -> Snapshot:
+        """The latest snapshot, published anew if the cached one is older than `max_age_s`."""
+        with self._lock:
+            snap, age = self._latest, time.monotonic() - self._received_at
+        if snap is None or age > self.max_age_s:
+            snap = self.runtime.publish()
+        return snap
+
+    def invalidate(self) -> None:
+        """The runtime changed (a run-control request): the next read publishes a new snapshot."""
+        with self._lock:
+            self._latest = None
+
+    @property
+    def simulates(self) -> bool:
+        """Whether the runtime runs the embedded simulation (scene edits, step and speed need it)."""
+        return self.runtime.world is not None
+
+    @property
+    def running(self) -> bool:
+        return self.runtime.run_state == RunState.RUNNING
+
+    def detach(self) -> None:
+        self._unsubscribe()

@@ -1,0 +1,87 @@
+"""Run control: start, pause, step, stop, reset, emergency stop, and the map/constraint/speed settings."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Body, Depends, HTTPException, Request, status
+
+from app.bridge.attachment import RuntimeAttachment
+from app.bridge.auth import require_token
+from app.bridge.dependencies import Attached, Link
+from app.bridge.protocol import ConfigIn, RunStatus, StepIn
+from app.bridge.routes import AUTH_ERRORS, CONFLICT
+from app.snapshot import RunState
+
+router = APIRouter(prefix="/api/run", tags=["run control"], dependencies=[Depends(require_token)],
+                   responses=AUTH_ERRORS)
+
+
+def _status(attached: RuntimeAttachment) -> RunStatus:
+    attached.invalidate()
+    runtime = attached.runtime
+    return RunStatus(run_state=runtime.run_state.value, status=runtime.status_line())
+
+
+def _conflict(detail: str) -> HTTPException:
+    return HTTPException(status.HTTP_409_CONFLICT, detail)
+
+
+@router.post("/start", responses=CONFLICT)
+def start(request: Request, attached: Attached, link: Link) -> RunStatus:
+    """Run the sequence from its first subtask, or resume a paused run. 409 without fresh robot state."""
+    if attached.runtime.backend is request.app.state.robot and link.is_stale():
+        raise _conflict("no fresh robot state: is the driver connected and streaming?")
+    attached.runtime.start()
+    return _status(attached)
+
+
+@router.post("/pause")
+def pause(attached: Attached) -> RunStatus:
+    """Pause: the simulation freezes; a real robot holds still."""
+    attached.runtime.pause()
+    return _status(attached)
+
+
+@router.post("/step", responses=CONFLICT)
+def step(attached: Attached, body: Annotated[StepIn | None, Body()] = None) -> RunStatus:
+    """While paused, advance the simulation by one control period (or `seconds`)."""
+    if not attached.simulates:
+        raise _conflict("step needs the embedded simulation")
+    if attached.runtime.run_state != RunState.PAUSED:
+        raise _conflict("step works while paused")
+    attached.runtime.step(None if body is None else body.seconds)
+    return _status(attached)
+
+
+@router.post("/stop")
+def stop(attached: Attached) -> RunStatus:
+    """Stop the sequence; the robot comes to rest."""
+    attached.runtime.stop()
+    return _status(attached)
+
+
+@router.post("/reset")
+def reset(attached: Attached) -> RunStatus:
+    """Reload the scene (simulation: robot back at its start), clear map, plan and progress."""
+    attached.runtime.reset()
+    return _status(attached)
+
+
+@router.post("/emergency-stop")
+def emergency_stop(attached: Attached) -> RunStatus:
+    """Zero velocity at once; nothing moves until start or reset."""
+    attached.runtime.emergency_stop()
+    return _status(attached)
+
+
+@router.post("/config", responses=CONFLICT)
+def configure(attached: Attached, body: ConfigIn) -> RunStatus:
+    """Switch the map kind or constraint kind (takes effect now) or the live speed (simulation only)."""
+    if not attached.simulates and (body.speed is not None or body.map_kind == "ground_truth"):
+        raise _conflict("speed and the ground-truth map need the embedded simulation")
+    if body.map_kind or body.constraint:
+        attached.runtime.configure(map_kind=body.map_kind, constraint=body.constraint)
+    if body.speed is not None:
+        attached.runtime.set_speed(body.speed)
+    return _status(attached)

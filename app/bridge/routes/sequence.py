@@ -1,0 +1,50 @@
+"""The task sequence: read it, validate YAML text, load it (errors name field and line)."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Depends
+
+from app.bridge.auth import require_token
+from app.bridge.dependencies import Attached
+from app.bridge.errors import file_problems
+from app.bridge.protocol import ErrorOut, SequenceIn, SequenceOut, ValidationOut
+from app.bridge.routes import AUTH_ERRORS
+from tasks.schema import TaskSequence
+from tasks.sequence_file import FileFormatError, parse_sequence, sequence_to_yaml
+
+router = APIRouter(prefix="/api/sequence", tags=["sequence"])
+NO_RUNTIME = {503: {"model": ErrorOut, "description": "No runtime is attached to the bridge"}}
+
+
+def _out(sequence: TaskSequence, version: int) -> SequenceOut:
+    return SequenceOut(name=sequence.name, version=version, subtasks=len(sequence.subtasks),
+                       yaml=sequence_to_yaml(sequence))
+
+
+@router.get("", responses=NO_RUNTIME)
+def get_sequence(attached: Attached) -> SequenceOut:
+    """The authored sequence (YAML) and its version (counts loads)."""
+    runtime = attached.runtime
+    return _out(runtime.sequence, runtime.sequence_version)
+
+
+@router.post("/validate", dependencies=[Depends(require_token)],
+             responses={k: v for k, v in AUTH_ERRORS.items() if k != 503})
+def validate(body: SequenceIn) -> ValidationOut:
+    """Check YAML text against the sequence schema without loading it."""
+    try:
+        sequence = parse_sequence(body.yaml, "request")
+    except FileFormatError as err:
+        return ValidationOut(valid=False, problems=file_problems(err))
+    return ValidationOut(valid=True, name=sequence.name, subtasks=len(sequence.subtasks))
+
+
+@router.put("", dependencies=[Depends(require_token)], responses=AUTH_ERRORS)
+def load(attached: Attached, body: SequenceIn) -> SequenceOut:
+    """Load YAML text as the authored sequence (a running sequence keeps its copy until the next start).
+
+    422 lists every problem with its field and line; nothing is loaded then."""
+    sequence = parse_sequence(body.yaml, "request")
+    attached.runtime.set_sequence(sequence)
+    attached.invalidate()
+    return _out(sequence, attached.runtime.sequence_version)

@@ -1,0 +1,83 @@
+"""Runtime data (snapshots, plans, scenes, link counters) as the operator API's response models.
+
+JSON has no NaN: every non-finite number becomes None.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from app.bridge.attachment import RuntimeAttachment
+from app.bridge.protocol import (
+    BoxOut,
+    Health,
+    LinkCounters,
+    PlanOut,
+    ProgressOut,
+    RobotStateOut,
+    SceneOut,
+    SubtaskProgressOut,
+    finite_or_none,
+)
+from app.bridge.robot_link import RobotLink
+from app.snapshot import Snapshot
+from core.sim.scene import Scene
+from core.types import Plan
+from tasks.sequencer import SubtaskProgress
+
+
+def json_array(a: np.ndarray) -> list:
+    """Nested lists of floats with None for NaN/inf."""
+    a = np.asarray(a, dtype=float)
+    if a.ndim == 0:
+        return finite_or_none(float(a))
+    return [json_array(row) for row in a] if a.ndim > 1 else [finite_or_none(float(x)) for x in a]
+
+
+def state_out(snap: Snapshot) -> RobotStateOut:
+    s = snap.state
+    return RobotStateOut(t=s.t, q=[float(x) for x in s.q], v=[float(x) for x in s.v],
+                         run_state=snap.run_state.value, status=snap.status)
+
+
+def plan_out(plan: Plan) -> PlanOut:
+    return PlanOut(t=plan.t, dt=plan.dt, q=json_array(plan.q), v=json_array(plan.v), u=json_array(plan.u),
+                   base_path=json_array(plan.base_path), ee_path=json_array(plan.ee_path),
+                   task_errors=json_array(np.asarray(plan.task_errors, dtype=float).reshape(-1)),
+                   solve_ms=json_array(np.asarray(plan.solve_ms, dtype=float).reshape(-1)),
+                   status=plan.status.value, message=plan.message, min_h=finite_or_none(plan.min_h))
+
+
+def _subtask_out(p: SubtaskProgress) -> SubtaskProgressOut:
+    return SubtaskProgressOut(index=p.index, name=p.name, kind=p.kind, outcome=p.outcome.value,
+                              elapsed_s=finite_or_none(p.elapsed_s), held_s=finite_or_none(p.held_s),
+                              position_error_m=finite_or_none(p.position_error_m),
+                              orientation_error_deg=finite_or_none(p.orientation_error_deg), message=p.message)
+
+
+def progress_out(snap: Snapshot) -> ProgressOut:
+    return ProgressOut(run_state=snap.run_state.value, status=snap.status, active_index=snap.active_index,
+                       subtasks=[_subtask_out(p) for p in snap.progress])
+
+
+def scene_out(scene: Scene) -> SceneOut:
+    boxes = [BoxOut(id=b.id, position=list(b.position), size=list(b.size), yaw=b.yaw) for b in scene.boxes]
+    return SceneOut(name=scene.name, robot_start=list(scene.robot_start), boxes=boxes)
+
+
+def health_out(link: RobotLink, attachment: RuntimeAttachment | None) -> Health:
+    rtt = np.asarray(link.rtt_ms())
+    age = link.state_age_s()
+    last = link.last_command
+    counters = LinkCounters(
+        states=link.counts["states"], frames=link.counts["frames"], frames_dropped=link.counts["frames_dropped"],
+        commands_sent=link.counts["commands_sent"], commands_superseded=link.counts["commands_superseded"],
+        acks=link.counts["acks"], rejected=dict(link.rejected), stale_events=link.counts["stale_events"])
+    return Health(
+        driver_connected=link.connected, driver=link.driver if link.connected else None,
+        state_age_ms=finite_or_none(age * 1e3), stale=link.is_stale(),
+        hold=None if last is None or last.reason == "runtime" else last.reason,
+        runtime_attached=attachment is not None,
+        run_state=None if attachment is None else attachment.runtime.run_state.value, counters=counters,
+        command_rtt_median_ms=finite_or_none(float(np.median(rtt))) if rtt.size else None,
+        command_rtt_p99_ms=finite_or_none(float(np.percentile(rtt, 99))) if rtt.size else None)

@@ -1,0 +1,112 @@
+"""Real bridges on 127.0.0.1 (uvicorn on a free port), real sockets, the sim driver as a real subprocess."""
+
+from __future__ import annotations
+
+import json
+import os
+import secrets
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from websockets.sync.client import ClientConnection, connect
+
+import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported)
+from app.bridge.server import BridgeServer
+
+ROOT = Path(__file__).parents[3]
+ZERO_STATE = {"q": [0.0] * 9, "v": [0.0] * 9}
+
+
+@pytest.fixture
+def bridge(tmp_path: Path) -> Iterator[BridgeServer]:
+    """A started bridge with its own token, on a port the OS chose."""
+    server = BridgeServer(port=0, token=secrets.token_urlsafe(24), token_file=tmp_path / "token")
+    server.start()
+    yield server
+    server.stop()
+
+
+def auth(token: str) -> dict[str, str]:
+    return {"Authorization": f"Bearer {token}"}
+
+
+@pytest.fixture
+def raw_driver(bridge: BridgeServer) -> Iterator[ClientConnection]:
+    """A hand-driven WebSocket client on the robot link (the welcome already read)."""
+    ws = connect(bridge.robot_url, additional_headers=auth(bridge.token), compression=None)
+    welcome = json.loads(ws.recv(timeout=5))
+    assert welcome["type"] == "welcome"
+    yield ws
+    ws.close()
+
+
+def send_state(ws: ClientConnection, t: float, **fields) -> None:
+    ws.send(json.dumps({"type": "state", "t": t, **ZERO_STATE, **fields}))
+
+
+def wait_until(predicate, timeout_s: float = 10.0, period_s: float = 0.01) -> bool:
+    """Poll `predicate` until true or `timeout_s` (a test's patience, not a timing requirement)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(period_s)
+    return bool(predicate())
+
+
+class DriverProcess:
+    """`python -m app.bridge.sim_driver` in its own process, its output collected by a thread."""
+
+    def __init__(self, url: str, token: str, *extra: str) -> None:
+        env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+        self.proc = subprocess.Popen([sys.executable, "-m", "app.bridge.sim_driver", "--url", url, "--token", token,
+                                      *extra], cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                                     stderr=subprocess.STDOUT, text=True)
+        self.lines: list[str] = []
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        for line in self.proc.stdout:
+            self.lines.append(line)
+
+    @property
+    def output(self) -> str:
+        return "".join(self.lines)
+
+    def signal(self, sig: int) -> None:
+        self.proc.send_signal(sig)
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGCONT)
+            self.proc.terminate()
+            try:
+                self.proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+
+
+@pytest.fixture
+def start_driver(bridge: BridgeServer) -> Iterator:
+    """Start sim drivers on `bridge`; each is connected and streaming when returned; all end at teardown."""
+    started: list[DriverProcess] = []
+
+    def start(*extra: str) -> DriverProcess:
+        driver = DriverProcess(bridge.robot_url, bridge.token, *extra)
+        started.append(driver)
+        if not bridge.robot.wait_for_state(90.0):
+            driver.close()
+            pytest.fail("the sim driver sent no state:\n" + driver.output)
+        return driver
+
+    yield start
+    for driver in started:
+        driver.close()
