@@ -16,7 +16,6 @@ from app.bridge.server import BridgeServer
 from tests.app.bridge.conftest import auth
 
 
-
 def _mutating_routes(bridge: BridgeServer) -> list[tuple[str, str]]:
     """Every operation of the OpenAPI schema that is not a GET."""
     paths = httpx.get(f"{bridge.url}/openapi.json").json()["paths"]
