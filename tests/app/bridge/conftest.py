@@ -13,6 +13,7 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 from websockets.sync.client import ClientConnection, connect
 
@@ -110,3 +111,23 @@ def start_driver(bridge: BridgeServer) -> Iterator:
     yield start
     for driver in started:
         driver.close()
+
+
+class Commander:
+    """Calls `observe()` and `command(qdot, t)` at 100 Hz in a thread, as the runtime's I/O loop does."""
+
+    def __init__(self, robot, qdot) -> None:
+        self.robot, self.qdot = robot, np.asarray(qdot, dtype=float)
+        self._stop = threading.Event()
+        self.sent = []
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.wait(0.01):
+            t = self.robot.observe().state.t
+            self.sent.append(self.robot.send(self.qdot, t))
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=2.0)
