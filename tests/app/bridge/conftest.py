@@ -131,3 +131,18 @@ class Commander:
     def stop(self) -> None:
         self._stop.set()
         self._thread.join(timeout=2.0)
+
+
+FORWARD = [0.3, 0, 0, 0, 0, 0, 0, 0, 0]
+
+
+@pytest.fixture
+def moving_robot(bridge: BridgeServer, start_driver) -> Iterator[tuple[DriverProcess, Commander]]:
+    """A sim driver whose base drives forward at 0.3 m/s under 100 Hz commands."""
+    driver = start_driver()
+    commander = Commander(bridge.robot, FORWARD)
+    if not wait_until(lambda: bridge.robot.observe().state.v[0] > 0.25, timeout_s=20):
+        commander.stop()
+        pytest.fail("the robot did not move:\n" + driver.output)
+    yield driver, commander
+    commander.stop()

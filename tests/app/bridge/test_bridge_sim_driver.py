@@ -7,11 +7,9 @@ import numpy as np
 import pytest
 
 from app.bridge.server import BridgeServer
-from tests.app.bridge.conftest import Commander, wait_until
+from tests.app.bridge.conftest import FORWARD, Commander, wait_until
 
 pytestmark = pytest.mark.slow
-
-FORWARD = [0.3, 0, 0, 0, 0, 0, 0, 0, 0]
 
 
 def test_driver_streams_state_and_frames_of_both_cameras(bridge: BridgeServer, start_driver) -> None:
@@ -38,20 +36,16 @@ def test_driver_follows_velocity_commands(bridge: BridgeServer, start_driver) ->
     assert all(c.reason == "runtime" for c in commander.sent[5:-5])
 
 
-def test_driver_stops_the_robot_when_commands_stop(bridge: BridgeServer, start_driver) -> None:
-    driver = start_driver()
-    commander = Commander(bridge.robot, FORWARD)
-    assert wait_until(lambda: bridge.robot.observe().state.v[0] > 0.25, timeout_s=20)
+def test_driver_stops_the_robot_when_commands_stop(bridge: BridgeServer, moving_robot) -> None:
+    driver, commander = moving_robot
     commander.stop()
     assert wait_until(lambda: abs(bridge.robot.observe().state.v[0]) < 1e-3, timeout_s=10)
     assert wait_until(lambda: "stopped the robot" in driver.output, timeout_s=5)
     assert driver.proc.poll() is None, "commands stopping is no reason to exit"
 
 
-def test_driver_exits_when_the_bridge_goes_away(bridge: BridgeServer, start_driver) -> None:
-    driver = start_driver()
-    commander = Commander(bridge.robot, FORWARD)
-    assert wait_until(lambda: bridge.robot.observe().state.v[0] > 0.25, timeout_s=20)
+def test_driver_exits_when_the_bridge_goes_away(bridge: BridgeServer, moving_robot) -> None:
+    driver, commander = moving_robot
     commander.stop()
     bridge.stop()
     assert driver.proc.wait(timeout=20) == 3

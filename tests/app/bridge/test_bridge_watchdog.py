@@ -17,11 +17,10 @@ import pytest
 from websockets.sync.client import ClientConnection
 
 from app.bridge.server import BridgeServer
-from tests.app.bridge.conftest import Commander, send_state, wait_until
+from tests.app.bridge.conftest import send_state, wait_until
 
 DEADLINE_S = 0.2
 SCHEDULING_SLACK_S = 0.05
-FORWARD = [0.3, 0, 0, 0, 0, 0, 0, 0, 0]
 
 
 def _zero_after(bridge: BridgeServer, since: float):
@@ -45,39 +44,29 @@ def test_state_older_than_200_ms_sends_a_zero_command(bridge: BridgeServer, raw_
 
 
 @pytest.mark.slow
-def test_killed_driver_gets_zero_within_200_ms(bridge: BridgeServer, start_driver) -> None:
-    driver = start_driver()
-    commander = Commander(bridge.robot, FORWARD)
-    try:
-        assert wait_until(lambda: bridge.robot.observe().state.v[0] > 0.25, timeout_s=20)
-        killed_at = time.monotonic()
-        os.kill(driver.proc.pid, signal.SIGKILL)
-        assert wait_until(lambda: _zero_after(bridge, killed_at) is not None, timeout_s=2)
-        zero = _zero_after(bridge, killed_at)
-        assert wait_until(lambda: sum(c.at > zero.at for c in commander.sent) >= 5, timeout_s=2)
-    finally:
-        commander.stop()
+def test_killed_driver_gets_zero_within_200_ms(bridge: BridgeServer, moving_robot) -> None:
+    driver, commander = moving_robot
+    killed_at = time.monotonic()
+    os.kill(driver.proc.pid, signal.SIGKILL)
+    assert wait_until(lambda: _zero_after(bridge, killed_at) is not None, timeout_s=2)
+    zero = _zero_after(bridge, killed_at)
+    assert wait_until(lambda: sum(c.at > zero.at for c in commander.sent) >= 5, timeout_s=2)
     assert zero.at - killed_at <= DEADLINE_S, f"zero command {zero.at - killed_at:.3f} s after the kill"
     after = [c for c in commander.sent if c.at > zero.at]
     assert all(c.reason == "stale_state" and not np.any(c.qdot) for c in after)
 
 
 @pytest.mark.slow
-def test_frozen_driver_gets_zero_then_stops(bridge: BridgeServer, start_driver) -> None:
-    driver = start_driver()
-    commander = Commander(bridge.robot, FORWARD)
-    try:
-        assert wait_until(lambda: bridge.robot.observe().state.v[0] > 0.25, timeout_s=20)
-        driver.signal(signal.SIGSTOP)
-        frozen_at = time.monotonic()
-        assert wait_until(lambda: _zero_after(bridge, frozen_at) is not None, timeout_s=2)
-        zero = _zero_after(bridge, frozen_at)
-        last_state = bridge.link.state_received_at
-        assert DEADLINE_S < zero.at - last_state <= DEADLINE_S + SCHEDULING_SLACK_S, zero.at - last_state
-        assert bridge.link.last_command.reason == "stale_state" and bridge.link.last_command.delivered
-        driver.signal(signal.SIGCONT)
-        assert wait_until(lambda: not bridge.watchdog.stale, timeout_s=10)
-        assert wait_until(lambda: bridge.robot.observe().state.v[0] > 0.25, timeout_s=10)
-    finally:
-        commander.stop()
+def test_frozen_driver_gets_zero_then_moves_on_when_it_thaws(bridge: BridgeServer, moving_robot) -> None:
+    driver, _ = moving_robot
+    driver.signal(signal.SIGSTOP)
+    frozen_at = time.monotonic()
+    assert wait_until(lambda: _zero_after(bridge, frozen_at) is not None, timeout_s=2)
+    zero = _zero_after(bridge, frozen_at)
+    last_state = bridge.link.state_received_at
+    assert DEADLINE_S < zero.at - last_state <= DEADLINE_S + SCHEDULING_SLACK_S, zero.at - last_state
+    assert bridge.link.last_command.reason == "stale_state" and bridge.link.last_command.delivered
+    driver.signal(signal.SIGCONT)
+    assert wait_until(lambda: not bridge.watchdog.stale, timeout_s=10)
+    assert wait_until(lambda: bridge.robot.observe().state.v[0] > 0.25, timeout_s=10)
     assert [e.kind for e in bridge.link.events if e.at >= frozen_at][:3] == ["zero_command", "stale", "fresh"]
