@@ -40,6 +40,7 @@ log = logging.getLogger("app.bridge.sim_driver")
 DEFAULT_SCENE = Path(__file__).parents[2] / "core" / "sim" / "scenes" / "default.yaml"
 EXIT_LINK_LOST = 3
 EXIT_NO_CONNECTION = 2
+MAX_LAG_S = 0.1
 
 
 class LinkLostError(ConnectionError):
@@ -107,6 +108,18 @@ class SimDriver:
         for frame in obs.frames:
             self.client.send_frame(frame, self.encoding)
 
+    def _pace(self, next_tick: float) -> float:
+        """Sleep until the next tick; a slow cycle (a camera rendering) is caught up by the following
+        ones, so simulated time keeps up with wall time; beyond `MAX_LAG_S` behind, time is dropped."""
+        next_tick += self.period_s
+        delay = next_tick - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+        elif delay < -MAX_LAG_S:
+            log.warning("%.0f ms behind real time: dropping it", -delay * 1e3)
+            next_tick = time.monotonic()
+        return next_tick
+
     def run(self, duration_s: float | None = None) -> int:
         """Step, publish and obey until stopped, `duration_s` passes or the link is lost; the exit status."""
         receiver = threading.Thread(target=self._receive_loop, name="driver-receive", daemon=True)
@@ -120,12 +133,7 @@ class SimDriver:
                 self._apply_commands()
                 self.robot.step(self.period_s)
                 self._publish()
-                next_tick += self.period_s
-                delay = next_tick - time.monotonic()
-                if delay > 0:
-                    time.sleep(delay)
-                else:
-                    next_tick = time.monotonic()  # behind: never catch up in a burst
+                next_tick = self._pace(next_tick)
         except (LinkLostError, ConnectionClosed, OSError) as err:
             self.robot.stop()
             log.warning("the bridge went away (%s): robot stopped, driver exits", err)
@@ -163,6 +171,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--state-hz", type=float, default=100.0, help="state rate (50–100 Hz)")
     parser.add_argument("--command-timeout", type=float, default=0.25, help="stop the robot after this long without "
                         "a command (s)")
+    parser.add_argument("--cameras", default="hand,base", help="depth cameras to stream, comma-separated ('' none)")
     parser.add_argument("--encoding", choices=("float32_m", "uint16_mm"), default="float32_m")
     parser.add_argument("--duration", type=float, default=None, help="exit after this many seconds")
     parser.add_argument("--connect-timeout", type=float, default=30.0)
@@ -175,7 +184,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     logging.basicConfig(level=args.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     world = SimWorld(RobotModel(), SimParams(), load_scene(args.scene))
-    robot = SimRobot(world, seed=args.seed)
+    robot = SimRobot(world, seed=args.seed, cameras=tuple(c for c in args.cameras.split(",") if c))
     client = DriverClient(args.url, read_token(args.token), name="sim_driver", clock=lambda: world.time)
     if not _connect(client, args.connect_timeout):
         return EXIT_NO_CONNECTION
