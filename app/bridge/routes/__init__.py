@@ -6,6 +6,7 @@ from __future__ import annotations
 from app.bridge.protocol import ErrorOut
 
 AUTH_ERRORS: dict[int | str, dict] = {
+    400: {"model": ErrorOut, "description": "The body is not JSON"},
     401: {"model": ErrorOut, "description": "Missing or wrong bearer token"},
     422: {"model": ErrorOut, "description": "The request does not follow its schema"},
     503: {"model": ErrorOut, "description": "No runtime is attached to the bridge"},
