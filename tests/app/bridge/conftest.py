@@ -13,6 +13,7 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
+import httpx
 import numpy as np
 import pytest
 from websockets.sync.client import ClientConnection, connect
@@ -22,6 +23,14 @@ from app.bridge.server import BridgeServer
 
 ROOT = Path(__file__).parents[3]
 ZERO_STATE = {"q": [0.0] * 9, "v": [0.0] * 9}
+EXAMPLE_SEQUENCE = (ROOT / "tasks" / "examples" / "two_pickups.yaml").read_text()
+BAD_SEQUENCE = """name: broken
+subtasks:
+- name: go
+  kind: base
+  target: {x: 1.0, y: nope}
+"""
+"""Line 5 has the error: field subtasks.0.target.y."""
 
 
 @pytest.fixture
@@ -146,3 +155,32 @@ def moving_robot(bridge: BridgeServer, start_driver) -> Iterator[tuple[DriverPro
         pytest.fail("the robot did not move:\n" + driver.output)
     yield driver, commander
     commander.stop()
+
+
+@pytest.fixture
+def api(bridge: BridgeServer) -> Iterator[httpx.Client]:
+    """An HTTP client of the bridge's operator API that sends the token."""
+    with httpx.Client(base_url=bridge.url, headers=auth(bridge.token), timeout=60.0) as client:
+        yield client
+
+
+@pytest.fixture
+def sim_runtime(bridge: BridgeServer):
+    """A runtime on the embedded simulation (default scene and sequence), attached to the bridge."""
+    from app.runtime import Runtime, RuntimeConfig
+
+    runtime = Runtime(RuntimeConfig())
+    bridge.attach(runtime)
+    yield runtime
+    runtime.shutdown()
+
+
+@pytest.fixture
+def bridge_runtime(bridge: BridgeServer):
+    """A runtime that drives the bridge's robot (no simulation of its own), attached to the bridge."""
+    from app.runtime import Runtime, RuntimeConfig
+
+    runtime = Runtime(RuntimeConfig(), backend=bridge.robot)
+    bridge.attach(runtime)
+    yield runtime
+    runtime.shutdown()
