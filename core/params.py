@@ -89,40 +89,116 @@ class HTMPCParams:
     """Added to the stored |e_i*| in (7c)."""
     slack_linear: float = 50.0
     slack_quadratic: float = 1.0
+    slack_groups: str = "body"
+    """Collision slacks per node: 'sphere' (one per sphere), 'body' (base+rack, arm) or 'node' (one).
+    Fewer slacks make each QP stage smaller (HPIPM's cost grows with the cube of its size)."""
     Q_base: tuple[float, float, float] = (1.0, 1.0, 0.5)
     Q_ee: tuple[float, float, float, float, float, float] = (1.0, 1.0, 1.0, 0.2, 0.2, 0.2)
     Q_edot: float = 0.01
     Q_x: float = 1e-3
     Q_u: float = 1e-2
     sqp_iters: int = 1
+    """Real-time iteration: one QP per level per control step."""
     sqp_iters_on_switch: int = 5
+    """More Gauss-Newton iterations right after a subtask switch (the warm start is far off then)."""
     control_rate_hz: float = 10.0
     command_rate_hz: float = 100.0
+    hierarchy: str = "lexicographic"
+    """'lexicographic' (eqs. 6–7) or 'weighted' (one weighted-sum MPC, for comparison)."""
+    trust_region_m: float = 1.0
+    """Per SQP iteration, base x and y may move at most this far from the linearisation point ..."""
+    trust_region_rad: float = 0.5
+    """... and the yaw and arm joints at most this much: Gauss-Newton steps on the nonlinear FK and the
+    linearised EDF stay where their models hold (full steps from a far warm start diverge)."""
+    solve_timeout_ms: float = 250.0
+    """A step slower than this is discarded: the robot brakes on the shifted previous plan."""
 
 
 @dataclass(frozen=True)
 class MappingParams:
-    """Object-level map (POCD) and local EDF."""
+    """Object-level map (POCD), the voxel-level baseline map and the local EDF (core/mapping).
 
+    POCD's reference values (METHOD.md) unless a docstring says why we differ; the removal-speed
+    choice (cap, forced-outlier weight) is argued in `core/mapping/object_mapper.py`.
+    """
+
+    # --- depth → points --------------------------------------------------------------------------
     voxel_m: float = 0.05
-    """Object submap resolution (POCD: 5 cm)."""
+    """Object submap resolution and segmentation voxel (POCD: 5 cm)."""
+    range_m: float = 3.0
+    """Depth beyond this is ignored (paper: hand camera range 3 m)."""
+    pixel_stride: int = 2
+    """Use every n-th pixel in u and v (at 3 m, 2 px ≈ 2.8 cm < one 5 cm voxel)."""
+    floor_height_m: float = 0.03
+    """Points below this height are the floor."""
+    self_filter_margin_m: float = 0.0
+    """Points within the robot's collision spheres grown by this margin are the robot itself."""
+
+    # --- segmentation, association, registration ---------------------------------------------------
+    min_segment_voxels: int = 8
+    """Smaller clusters of occupied voxels are noise, not objects."""
+    association_cap_m: float = 0.5
+    """Per-point distances to an object's surface are truncated here before averaging (the cost)."""
+    association_gate_m: float = 0.25
+    """A segment matches an object when its truncated mean distance to the surface is below this."""
+    merge_gate_m: float = 0.08
+    """A second segment lying on an already matched object's surface (mean distance below this) joins it."""
+    registration_trigger_m: float = 0.04
+    """ICP runs when the median distance of a matched segment to its object's surface exceeds this."""
+    icp_max_correspondence_m: float = 0.35
+    icp_max_iterations: int = 30
+
+    # --- POCD consistency (eqs. 1–4) --------------------------------------------------------------
     tau_m: float = 0.2
+    """Inlier std tau of Delta (POCD: 0.2 m)."""
     delta_max_m: float = 4.0
+    """Outlier support: Delta ~ U(−Delta_max, Delta_max) (POCD: 4 m)."""
     theta_stat: float = 0.4
-    """Remove an object when E[v] < theta_stat after more than `min_observations` observations."""
+    """Remove an object when E[v] < theta_stat after more than `min_observations` updates."""
     min_observations: int = 2
     alpha0: float = 2.0
     beta0: float = 1.0
     mu0_m: float = 0.0
     sigma0_m: float = 0.5
-    beta_cap: float = 25.0
+    beta_cap: float = 10.0
+    """Cap on alpha and beta (both rescaled, ratio kept, when the larger exceeds it). POCD: 25; we use
+    10 so the belief remembers about one second of frames and a moved box goes fast."""
+    forced_outlier_weight: float = 3.0
+    """w_max: a forced outlier adds up to this to beta, scaled by the clear-view evidence (POCD: 1)."""
+    clear_view_fraction: float = 0.5
+    """A missing object is a forced outlier only if at least this fraction of its expected-visible
+    surface had free space seen through it."""
+    clear_view_voxels: int = 30
+    """Seen-through surface voxels at which the forced-outlier weight saturates at w_max."""
+    min_expected_voxels: int = 6
+    """Fewer expected-visible surface voxels than this is no evidence at all."""
+    visibility_margin_m: float = 0.1
+    """A surface point is 'hit' when the measured depth is within this (plus noise) of its depth."""
+    depth_noise_coeff_m: float = 0.005
+    """Sensor model for the margins: depth std = coeff · z² (stereo-like); 3 std are added to margins."""
     semantic_weight_k: float = 0.0
-    floor_height_m: float = 0.03
+    """k on the semantic term (eq. 3). 0: with s = 0 every frame, k ≥ 1 drifts still boxes to removal."""
+    semantic_static_s: float = 0.0
+    """s for every object (all boxes here are 'likely to move')."""
+    carve_after_misses: int = 3
+    """A submap voxel seen through this many times more often than it was hit is carved away."""
+
+    # --- voxel-level baseline (OctoMap-style log-odds, projective free-space carving) -------------
+    logodds_hit: float = 0.85
+    logodds_miss: float = -0.4
+    logodds_min: float = -2.0
+    logodds_max: float = 3.5
+    """OctoMap's defaults (hit 0.7, miss 0.4, clamping 0.12–0.97); occupied when log-odds > 0."""
+
+    # --- local EDF (9a–9b) --------------------------------------------------------------------------
     edf_window_m: tuple[float, float, float] = (4.0, 4.0, 1.4)
+    """Grid around the robot (x, y, z from the floor up)."""
     edf_voxel_m: float = 0.1
+    """EDF grid spacing (the authors used 0.2 m)."""
     theta_cutoff_m: float = 1.8
+    """Distances are truncated here; outside the window the field is this constant."""
     theta_zero_m: float = 0.05
-    range_m: float = 3.0
+    """Submap voxels with |M_i| ≤ theta_zero are the object's surface."""
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,63 @@
+"""Collision avoidance from a distance field (eq. 10): one row per collision sphere and node.
+
+h_j(x) = EDF(P_j(q)) − r_j − delta_safe, linearised at the current iterate q̄ with the EDF's value and
+gradient at the predicted sphere centres: h ≈ h̄ + g^T (q − q̄), g = J_Pj(q̄)^T ∇EDF(P̄_j).
+- EDF baseline:  h ≥ 0                      →  g^T q + s ≥ g^T q̄ − h̄
+- CBF (proposed): dh/dt ≥ −gamma h, dh/dt = g^T v  →  g^T v + gamma g^T q + s ≥ gamma (g^T q̄ − h̄)
+The slack s ≥ 0 (penalised in the cost) keeps the problem feasible when a box appears suddenly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from core.htmpc.horizon_kinematics import HorizonKinematics
+
+
+class DistanceField(Protocol):
+    """What the controller needs of a map (`core.types.LocalEDF` satisfies it)."""
+
+    def distance(self, p: np.ndarray) -> np.ndarray: ...
+
+    def gradient(self, p: np.ndarray) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class CollisionRows:
+    """Rows a_q·q_k + a_v·v_k + s ≥ lb for nodes 1..K−1 (first axis) and spheres (second axis)."""
+
+    a_q: np.ndarray
+    a_v: np.ndarray
+    lb: np.ndarray
+    h: np.ndarray
+    """h̄ per node and sphere (m), for diagnostics."""
+
+
+class CollisionConstraint:
+    """Builds the linearised EDF or CBF rows (METHOD.md, eq. 10)."""
+
+    def __init__(self, radii: np.ndarray, delta_safe_m: float, gamma: float, kind: str = "cbf") -> None:
+        if kind not in ("cbf", "edf"):
+            raise ValueError(f"constraint kind must be 'cbf' or 'edf', got {kind!r}")
+        self.radii = np.asarray(radii, float)
+        self.delta_safe_m = delta_safe_m
+        self.gamma = gamma
+        self.kind = kind
+
+    def barrier(self, edf: DistanceField, centres: np.ndarray) -> np.ndarray:
+        """h = EDF(P) − r − delta_safe for centres (..., M, 3)."""
+        return edf.distance(centres) - self.radii - self.delta_safe_m
+
+    def rows(self, q_bar: np.ndarray, kin: HorizonKinematics, edf: DistanceField) -> CollisionRows:
+        """Rows for nodes 1..K−1 of the iterate q̄ (K, 9)."""
+        P, JP = kin.P[1:], kin.JP[1:]
+        h = self.barrier(edf, P)
+        grad = edf.gradient(P)
+        g = np.einsum("kmc,kmcj->kmj", grad, JP)
+        gq = np.einsum("kmj,kj->km", g, q_bar[1:])
+        if self.kind == "edf":
+            return CollisionRows(a_q=g, a_v=np.zeros_like(g), lb=gq - h, h=h)
+        return CollisionRows(a_q=self.gamma * g, a_v=g, lb=self.gamma * (gq - h), h=h)

@@ -1,0 +1,67 @@
+"""Forward kinematics over the whole horizon in one casadi call (FK of the EE and of every collision
+sphere, with Jacobians), so the SQP pays the call overhead once per iteration, not per node."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cache
+
+import casadi as ca
+import numpy as np
+
+from core.robot.model import RobotModel
+from core.robot.symbolic_fk import SymbolicKinematics
+
+
+@dataclass(frozen=True)
+class HorizonKinematics:
+    """Kinematics at K nodes: EE position p (K,3), rotation R (K,3,3), Jacobians Jp, Jw (K,3,9) in world
+    axes; sphere centres P (K,M,3) and their Jacobians JP (K,M,3,9)."""
+
+    p: np.ndarray
+    R: np.ndarray
+    Jp: np.ndarray
+    Jw: np.ndarray
+    P: np.ndarray
+    JP: np.ndarray
+
+
+@cache
+def _function(robot: RobotModel, n_nodes: int) -> ca.Function:
+    """One column per node: [p (3), R row-major (9), Jp (3×9), Jw (3×9), P (M×3), JP (M×3×9)], all
+    row-major, so numpy reads each block with a reshape (no per-call post-processing)."""
+    sym = SymbolicKinematics(robot)
+    q = sym.q
+    R, p = sym.frame("ee")
+    dR = ca.jacobian(ca.vec(R), q)
+    cols = []
+    for j in range(q.shape[0]):
+        S = ca.reshape(dR[:, j], 3, 3) @ R.T  # [ω_j]×
+        cols.append(ca.vertcat(S[2, 1], S[0, 2], S[1, 0]))
+    Jw = ca.horzcat(*cols)
+    P = sym.sphere_centres()  # 3×M
+    JP = ca.jacobian(ca.vec(P), q)  # (3M)×9, rows (xyz of sphere 0, sphere 1, ...)
+    flat = ca.vertcat(p, ca.vec(R.T), ca.vec(ca.jacobian(p, q).T), ca.vec(Jw.T), ca.vec(P), ca.vec(JP.T))
+    return ca.Function("kin", [q], [flat]).map(n_nodes, "serial")
+
+
+class HorizonKinematicsEvaluator:
+    """Evaluates `HorizonKinematics` for a (K, 9) array of configurations."""
+
+    def __init__(self, robot: RobotModel, n_nodes: int) -> None:
+        self.robot = robot
+        self.n_nodes = n_nodes
+        self.n_spheres = len(robot.spheres)
+        self._fn = _function(robot, n_nodes)
+        M = self.n_spheres
+        sizes = [3, 9, 27, 27, 3 * M, 27 * M]
+        self._cuts = np.cumsum([0, *sizes])
+
+    def __call__(self, q: np.ndarray) -> HorizonKinematics:
+        K, M = self.n_nodes, self.n_spheres
+        flat = np.asarray(self._fn(np.asarray(q, float).T)).T  # (K, total)
+        c = self._cuts
+        return HorizonKinematics(
+            p=flat[:, c[0]:c[1]], R=flat[:, c[1]:c[2]].reshape(K, 3, 3), Jp=flat[:, c[2]:c[3]].reshape(K, 3, 9),
+            Jw=flat[:, c[3]:c[4]].reshape(K, 3, 9), P=flat[:, c[4]:c[5]].reshape(K, M, 3),
+            JP=flat[:, c[5]:c[6]].reshape(K, M, 3, 9))

@@ -1,0 +1,279 @@
+"""The perceptive hierarchical-task MPC (METHOD.md, eqs. 6–8 and 10).
+
+Each control step solves, for the active subtask's task order [T_1 … T_L], a sequence of single-task
+MPCs: level l minimises J_l + J_aux subject to the dynamics, bounds, the collision rows from the EDF
+and |e_i| ≤ |e_i*| + tol for each earlier level i (7c). The nonlinear problem is handled by
+Gauss-Newton SQP in real-time-iteration form: one structured QP (HPIPM) per level per step, around the
+previous solution shifted to now; right after a task switch, several iterations.
+
+Public API: `HTMPC(robot, params).solve(state, refs, edf) -> Plan`, `reset()`.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from core.htmpc.collision_constraint import CollisionConstraint, CollisionRows, DistanceField
+from core.htmpc.horizon_kinematics import HorizonKinematics, HorizonKinematicsEvaluator
+from core.htmpc.level_problem import (
+    LexBound,
+    add_lex_rows,
+    base_arrays,
+    linearised_errors,
+    task_cost,
+    variable_bounds,
+)
+from core.htmpc.ocp_qp import QPLayout, StructuredQP
+from core.htmpc.safety import braking_plan, plan_is_safe
+from core.htmpc.tasks import BaseTask, EETask, Linearisation
+from core.params import HTMPCParams
+from core.robot.model import RobotModel
+from core.types import Plan, PlanStatus, References, RobotState
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class _Iterate:
+    t: float
+    q: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+
+
+@dataclass
+class StepResult:
+    """What one SQP iteration produced (kept for diagnostics, tests and the IPOPT comparison)."""
+
+    q: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    slack: np.ndarray
+    level_ms: list[float]
+    level_errors: list[np.ndarray]
+    failed_level: int | None
+    message: str
+    kin: HorizonKinematics | None = None
+    lins: dict[str, Linearisation] | None = None
+    q_bar: np.ndarray | None = None
+    min_h: float = float("nan")
+    """Smallest barrier value h = EDF − r − delta_safe at node 1 (m); NaN without a map."""
+    kin_new: HorizonKinematics | None = None
+    """FK at the new iterate (set by the trust-region test)."""
+
+
+class HTMPC:
+    """Lexicographic whole-body MPC for the 9-joint mobile manipulator."""
+
+    def __init__(self, robot: RobotModel, params: HTMPCParams | None = None) -> None:
+        self.robot = robot
+        self.params = params or HTMPCParams()
+        p = self.params
+        if p.hierarchy not in ("lexicographic", "weighted"):
+            raise ValueError(f"hierarchy must be 'lexicographic' or 'weighted', got {p.hierarchy!r}")
+        self.tasks = {"base": BaseTask(p.Q_base), "ee": EETask(p.Q_ee)}
+        self.kinematics = HorizonKinematicsEvaluator(robot, p.N + 1)
+        self.collision = CollisionConstraint(robot.sphere_radii, p.delta_safe_m, p.gamma, p.constraint)
+        self._qps: dict[int, StructuredQP] = {}
+        self.slack_group = _slack_groups(robot, p.slack_groups)
+        self.trust = np.array([p.trust_region_m] * 2 + [p.trust_region_rad] * 7)
+        self.trust_scale = 1.0
+        """Adapted by the ratio of actual to predicted task-cost decrease (a trust-region SQP)."""
+        self._previous: _Iterate | None = None
+        self.last_step: StepResult | None = None
+
+    def reset(self) -> None:
+        """Forget the warm start (e.g. after a reset of the world)."""
+        self._previous = None
+        self.last_step = None
+        self.trust_scale = 1.0
+
+    # --- building blocks ---------------------------------------------------------------------------
+
+    def _qp(self, n_lex: int) -> StructuredQP:
+        if n_lex not in self._qps:
+            layout = QPLayout(self.params.N, len(self.robot.spheres), n_lex, self.slack_group)
+            self._qps[n_lex] = StructuredQP(layout, self.params.dt_s)
+        return self._qps[n_lex]
+
+    def warm_start(self, state: RobotState) -> _Iterate:
+        """The previous solution shifted to now and rolled out from the measured state (zero input if none)."""
+        N, dt = self.params.N, self.params.dt_s
+        a = np.zeros((N, 9))
+        prev = self._previous
+        if prev is not None:
+            for k in range(N):
+                j = int((state.t - prev.t) / dt + k + 0.5)
+                a[k] = prev.a[min(max(j, 0), N - 1)] if j < N else 0.0
+        q = np.empty((N + 1, 9))
+        v = np.empty((N + 1, 9))
+        q[0], v[0] = state.q, self.robot.limits.clip_velocity(state.v)
+        for k in range(N):
+            v[k + 1] = np.clip(v[k] + dt * a[k], -self.robot.limits.v_max, self.robot.limits.v_max)
+            q[k + 1] = q[k] + dt * 0.5 * (v[k] + v[k + 1])
+        return _Iterate(state.t, q, v, a)
+
+    def _linearise(self, order: list[str], refs: References, q_bar: np.ndarray,
+                   kin: HorizonKinematics) -> dict[str, Linearisation]:
+        out = {}
+        for name in order:
+            ref = refs.base if name == "base" else refs.ee
+            out[name] = self.tasks[name].linearise(q_bar, kin, ref)
+        return out
+
+    # --- one SQP iteration -------------------------------------------------------------------------
+
+    def iterate(self, x0: np.ndarray, it: _Iterate, order: list[str], refs: References,
+                edf: DistanceField | None) -> StepResult:
+        """Linearise at the iterate and solve the levels; returns the last successful level's solution."""
+        p = self.params
+        kin = self.kinematics(it.q)
+        lins = self._linearise(order, refs, it.q, kin)
+        rows: CollisionRows | None = self.collision.rows(it.q, kin, edf) if edf is not None else None
+        lim = self.robot.limits
+        levels = [order] if p.hierarchy == "weighted" else [[name] for name in order]
+        bounds: list[LexBound] = []
+        best, level_ms, level_errors = None, [], []
+        failed, message = None, ""
+        for i, level in enumerate(levels):
+            n_lex = sum(b.lin.e0.shape[1] for b in bounds)
+            qp = self._qp(n_lex)
+            arrays = base_arrays(qp, p, it.q, rows)
+            for name in level:
+                task_cost(arrays, qp, lins[name], it.q, p)
+            add_lex_rows(arrays, qp, bounds, it.q, p.lex_tolerance)
+            lbx, ubx = variable_bounds(qp.layout, x0, lim.q_min, lim.q_max, lim.v_max, lim.a_max, p.dt_s,
+                                       it.q, self.trust * self.trust_scale)
+            sol = qp.solve(arrays.h, arrays.g, arrays.a, arrays.lba, arrays.uba, lbx, ubx)
+            level_ms.append(sol.solve_ms)
+            if not sol.success:
+                failed, message = i, f"level {i + 1} QP failed ({sol.status})"
+                log.warning(message)
+                break
+            q, v, a = qp.layout.states(sol.z)
+            best = (q, v, a, qp.layout.slacks(sol.z))
+            for name in level:
+                e = linearised_errors(lins[name], q, it.q)
+                level_errors.append(e)
+                bounds.append(LexBound(lins[name], e))
+        if best is None:
+            return StepResult(it.q, it.v, it.a, np.zeros(0), level_ms, level_errors, 0, message, kin, lins, it.q)
+        q, v, a, s = best
+        min_h = float(rows.h[0].min()) if rows is not None else float("nan")
+        return StepResult(q, v, a, s, level_ms, level_errors, failed, message, kin, lins, it.q, min_h)
+
+    # --- the control step --------------------------------------------------------------------------
+
+    def solve(self, state: RobotState, refs: References, edf: DistanceField | None) -> Plan:
+        """One control step: a plan from the measured state, or a braking plan if anything is wrong."""
+        p = self.params
+        t0 = time.perf_counter()
+        order = [name for name in refs.order if (refs.base if name == "base" else refs.ee) is not None]
+        n = len(order)
+        if not (np.all(np.isfinite(state.q)) and np.all(np.isfinite(state.v)) and np.isfinite(state.t)):
+            self._previous = None
+            return braking_plan(state, self.robot.limits, p.N, p.dt_s, PlanStatus.STOPPING,
+                                "non-finite robot state: stopping", n_levels=n)
+        if not order:
+            self._previous = None
+            return braking_plan(state, self.robot.limits, p.N, p.dt_s, PlanStatus.STOPPING, "no task: holding",
+                                n_levels=0)
+        x0 = np.concatenate([state.q, self.robot.limits.clip_velocity(state.v)])
+        it = self.warm_start(state)
+        iters = p.sqp_iters_on_switch if (refs.switched or self._previous is None) else p.sqp_iters
+        step, level_ms = None, np.zeros(len(order) if p.hierarchy == "lexicographic" else 1)
+        try:
+            for _ in range(max(1, iters)):
+                step = self.iterate(x0, it, order, refs, edf)
+                level_ms[: len(step.level_ms)] += step.level_ms
+                if step.failed_level == 0:
+                    break
+                self._adapt_trust(step, order, refs)
+                it = _Iterate(state.t, step.q, step.v, step.a)
+        except (ValueError, FloatingPointError, np.linalg.LinAlgError) as err:
+            return self._fallback(state, n, f"controller error: {err}")
+        elapsed = (time.perf_counter() - t0) * 1e3
+        if step is None or step.failed_level == 0:
+            return self._fallback(state, n, step.message if step else "no iteration")
+        if elapsed > p.solve_timeout_ms:
+            return self._fallback(state, n, f"solve took {elapsed:.0f} ms > {p.solve_timeout_ms:.0f} ms")
+        plan = self._plan(state, order, refs, step, tuple(level_ms))
+        if not plan_is_safe(plan, self.robot.limits, tol=1e-4):
+            return self._fallback(state, n, "solution outside the limits")
+        self._previous = _Iterate(state.t, step.q, step.v, step.a)
+        self.last_step = step
+        return plan
+
+    def _true_cost(self, q: np.ndarray, kin: HorizonKinematics, order: list[str], refs: References) -> float:
+        """Σ over tasks and nodes 1..N of ½‖e‖²_W with the exact (nonlinear) errors."""
+        total = 0.0
+        for name in order:
+            task = self.tasks[name]
+            e = task.compute_error(q, refs.base) if name == "base" else task.compute_error(kin, refs.ee)
+            total += 0.5 * float(np.sum(task.weights[: e.shape[1]] * e[1:] ** 2))
+        return total
+
+    def _adapt_trust(self, step: StepResult, order: list[str], refs: References) -> None:
+        """Shrink the trust region when the linear model over-promised, widen it when it was right.
+        Also evaluates the FK of the new iterate once, which the plan reuses for its EE path."""
+        kin_new = self.kinematics(step.q)
+        old = self._true_cost(step.q_bar, step.kin, order, refs)
+        new = self._true_cost(step.q, kin_new, order, refs)
+        predicted = 0.0
+        for name in order:
+            lin = step.lins[name]
+            e = lin.e0[1:] + np.einsum("kmj,kj->km", lin.J[1:], step.q[1:] - step.q_bar[1:])
+            predicted += 0.5 * float(np.sum(lin.weights * e**2))
+        step.kin_new = kin_new
+        if old - predicted <= 1e-9:
+            return
+        rho = (old - new) / (old - predicted)
+        if rho < 0.25:
+            self.trust_scale = max(self.trust_scale * 0.5, 1.0 / 32.0)
+        elif rho > 0.75:
+            self.trust_scale = min(self.trust_scale * 2.0, 1.0)
+
+    def _fallback(self, state: RobotState, n_levels: int, reason: str) -> Plan:
+        log.warning("HTMPC fallback: %s", reason)
+        self._previous = None
+        return braking_plan(state, self.robot.limits, self.params.N, self.params.dt_s, PlanStatus.FALLBACK,
+                            f"{reason}; braking", n_levels=n_levels)
+
+    def _plan(self, state: RobotState, order: list[str], refs: References, step: StepResult,
+              level_ms: tuple[float, ...]) -> Plan:
+        """The plan of a step (its EE path from the FK the trust-region test already evaluated)."""
+        p = self.params
+        kin = step.kin
+        errors = tuple(float(np.linalg.norm(step.lins[name].e0[0])) for name in order)
+        if step.kin_new is not None:
+            ee_path = step.kin_new.p.copy()
+        else:  # Gauss-Newton prediction p̄ + J_p (q − q̄)
+            ee_path = kin.p + np.einsum("kij,kj->ki", kin.Jp, step.q - step.q_bar)
+        v = np.clip(step.v, -self.robot.limits.v_max, self.robot.limits.v_max)
+        a = np.clip(step.a, -self.robot.limits.a_max, self.robot.limits.a_max)
+        max_slack = float(step.slack.max()) if step.slack.size else 0.0
+        status = PlanStatus.SLACK if max_slack > 1e-3 else PlanStatus.OK
+        message = step.message or (f"collision slack {max_slack:.3f}" if status == PlanStatus.SLACK else "")
+        return Plan(t=state.t, dt=p.dt_s, q=step.q, v=v, u=a, base_path=step.q[:, :3].copy(), ee_path=ee_path,
+                    task_errors=errors, solve_ms=level_ms, status=status, message=message, min_h=step.min_h,
+                    extras={"max_slack": max_slack, "levels": float(len(step.level_ms))})
+
+
+def _slack_groups(robot: RobotModel, kind: str) -> np.ndarray:
+    """Slack index per sphere: 'sphere' (one each), 'body' (base/rack vs arm) or 'node' (one per node)."""
+    names = [s.name for s in robot.spheres]
+    if kind == "sphere":
+        return np.arange(len(names))
+    if kind == "body":
+        return np.array([0 if n in ("base", "rack_low", "rack_high") else 1 for n in names])
+    if kind == "node":
+        return np.zeros(len(names), int)
+    raise ValueError(f"slack_groups must be 'sphere', 'body' or 'node', got {kind!r}")
+
+
+def _first(kin: HorizonKinematics) -> HorizonKinematics:
+    return HorizonKinematics(kin.p[:1], kin.R[:1], kin.Jp[:1], kin.Jw[:1], kin.P[:1], kin.JP[:1])

@@ -1,0 +1,256 @@
+"""Reference formulation: the same lexicographic problem as nonlinear programs solved by IPOPT.
+
+Differences from the real-time controller are exactly the ones under study: exact nonlinear FK and
+SO(3) log in the task errors and the collision rows (the EDF itself stays linearised at the iterate's
+sphere centres, as the controller does, since an interpolant of the grid is impractical in casadi),
+and IPOPT iterates to convergence. Used by tests for accuracy and by `bench/htmpc_solve.py` for the
+speed ratio and the cost gap.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from core.htmpc.collision_constraint import DistanceField
+from core.htmpc.horizon_kinematics import HorizonKinematicsEvaluator
+from core.htmpc.htmpc import _slack_groups
+from core.params import HTMPCParams
+from core.robot.model import RobotModel
+from core.robot.symbolic_fk import SymbolicKinematics
+from core.types import References, RobotState
+
+
+def _log3_sx(E: ca.SX) -> ca.SX:
+    """Rotation vector of E with atan2 (smooth derivatives near zero; fine away from π)."""
+    w = 0.5 * ca.vertcat(E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1])
+    s = ca.sqrt(ca.dot(w, w) + 1e-18)
+    c = (ca.trace(E) - 1.0) / 2.0
+    theta = ca.atan2(s, c)
+    return w * ca.if_else(s > 1e-6, theta / s, 1.0 + s**2 / 6.0)
+
+
+@dataclass(frozen=True)
+class ReferenceResult:
+    q: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    level_costs: tuple[float, ...]
+    level_ms: tuple[float, ...]
+    success: bool
+    compared_costs: tuple[float, ...] = ()
+
+
+class IpoptReference:
+    """Solves the levels of one control step with IPOPT (exact kinematics)."""
+
+    def __init__(self, robot: RobotModel, params: HTMPCParams | None = None, tol: float = 1e-8) -> None:
+        self.robot = robot
+        self.params = params or HTMPCParams()
+        self.tol = tol
+        self.sym = SymbolicKinematics(robot)
+        self.kin = HorizonKinematicsEvaluator(robot, self.params.N + 1)
+        self.groups = _slack_groups(robot, self.params.slack_groups)
+        self._cache: dict[tuple, tuple] = {}
+
+    # --- symbolic pieces --------------------------------------------------------------------------
+
+    def _errors(self, name: str, q: ca.SX, ref_p: ca.SX, ref_R: ca.SX | None) -> ca.SX:
+        if name == "base":
+            e = ref_p[:2] - q[:2]
+            if ref_R is not None:  # here ref_R holds the yaw reference
+                d = ref_R - q[2]
+                e = ca.vertcat(e, ca.atan2(ca.sin(d), ca.cos(d)))
+            return e
+        R, p = self.sym.frame("ee")
+        Rq = ca.substitute(R, self.sym.q, q)
+        pq = ca.substitute(p, self.sym.q, q)
+        e = ref_p - pq
+        if ref_R is not None:
+            e = ca.vertcat(e, _log3_sx(Rq.T @ ref_R))
+        return e
+
+    def _build(self, levels: tuple[str, ...], has_rot: dict[str, bool], level: int, with_edf: bool):
+        p, N, M = self.params, self.params.N, len(self.robot.spheres)
+        ns = int(self.groups.max()) + 1
+        X = ca.SX.sym("X", 18, N + 1)
+        U = ca.SX.sym("U", 9, N)
+        S = ca.SX.sym("S", ns, N - 1)
+        x0 = ca.SX.sym("x0", 18)
+        refs = {name: (ca.SX.sym(f"p_{name}", 3, N + 1), ca.SX.sym(f"R_{name}", 9, N + 1)) for name in levels}
+        dbar = ca.SX.sym("dbar", M, N - 1)
+        grad = ca.SX.sym("grad", 3 * M, N - 1)
+        Pbar = ca.SX.sym("Pbar", 3 * M, N - 1)
+        estar = {name: ca.SX.sym(f"estar_{name}", 6, N) for name in levels[:level]}
+        P_fn = ca.Function("P", [self.sym.q], [ca.vec(self.sym.sphere_centres())])
+        dt = p.dt_s
+        W = {"base": np.array(p.Q_base), "ee": np.array(p.Q_ee)}
+
+        def err(name, k):
+            ref_p, ref_R = refs[name]
+            if name == "base":
+                rot = ref_R[0, k] if has_rot[name] else None
+                return self._errors(name, X[:9, k], ref_p[:, k], rot)
+            rot = ca.reshape(ref_R[:, k], 3, 3) if has_rot[name] else None
+            return self._errors(name, X[:9, k], ref_p[:, k], rot)
+
+        cost = 0
+        g, lbg, ubg = [], [], []
+        names = list(levels) if p.hierarchy == "weighted" else [levels[level]]
+        for k in range(1, N + 1):
+            q, v = X[:9, k], X[9:, k]
+            for name in names:
+                e = err(name, k)
+                w = W[name][: e.shape[0]]
+                cost += dt * 0.5 * ca.sum1(w * e**2)
+                edot = ca.jtimes(e, X[:9, k], v)
+                cost += dt * 0.5 * p.Q_edot * ca.sum1(w * edot**2)
+            cost += dt * 0.5 * p.Q_x * ca.sumsqr(v)
+            for name in levels[:level]:
+                e = err(name, k)
+                m = e.shape[0]
+                g.append(e - estar[name][:m, k - 1])
+                lbg.append(-np.inf * np.ones(m))
+                ubg.append(np.zeros(m))
+                g.append(e + estar[name][:m, k - 1])
+                lbg.append(np.zeros(m))
+                ubg.append(np.inf * np.ones(m))
+        for k in range(N):
+            cost += dt * 0.5 * p.Q_u * ca.sumsqr(U[:, k])
+            qn = X[:9, k] + dt * X[9:, k] + 0.5 * dt * dt * U[:, k]
+            vn = X[9:, k] + dt * U[:, k]
+            g.append(X[:, k + 1] - ca.vertcat(qn, vn))
+            lbg.append(np.zeros(18))
+            ubg.append(np.zeros(18))
+        cost += ca.sum1(ca.sum2(p.slack_linear * S + p.slack_quadratic * S**2))
+        if with_edf:
+            for k in range(1, N):
+                q, v = X[:9, k], X[9:, k]
+                Pq = P_fn(q)
+                JP = ca.jacobian(Pq, q)
+                for j in range(M):
+                    gj = grad[3 * j:3 * j + 3, k - 1]
+                    h = dbar[j, k - 1] + ca.dot(gj, Pq[3 * j:3 * j + 3] - Pbar[3 * j:3 * j + 3, k - 1]) \
+                        - self.robot.sphere_radii[j] - p.delta_safe_m
+                    if p.constraint == "cbf":
+                        hdot = ca.dot(gj, JP[3 * j:3 * j + 3, :] @ v)
+                        g.append(hdot + p.gamma * h + S[self.groups[j], k - 1])
+                    else:
+                        g.append(h + S[self.groups[j], k - 1])
+                    lbg.append(np.zeros(1))
+                    ubg.append(np.inf * np.ones(1))
+        z = ca.vertcat(ca.vec(X), ca.vec(U), ca.vec(S))
+        par = ca.vertcat(x0, *[ca.vertcat(ca.vec(a), ca.vec(b)) for a, b in refs.values()], ca.vec(dbar),
+                         ca.vec(grad), ca.vec(Pbar), *[ca.vec(e) for e in estar.values()])
+        g.insert(0, X[:, 0] - x0)
+        lbg.insert(0, np.zeros(18))
+        ubg.insert(0, np.zeros(18))
+        nlp = {"x": z, "p": par, "f": cost, "g": ca.vertcat(*g)}
+        opts = {"ipopt": {"print_level": 0, "tol": self.tol, "max_iter": 300, "warm_start_init_point": "yes",
+                          "mu_init": 1e-3}, "print_time": False}
+        solver = ca.nlpsol("reference", "ipopt", nlp, opts)
+        cost_fn = ca.Function("cost", [z, par], [cost])
+        rows = g[-(M * (N - 1)):] if with_edf else []
+        rows_fn = ca.Function("collision_rows", [z, par], [ca.vertcat(*rows) if rows else ca.DM.zeros(0)])
+        errs = ca.Function("errors", [z, par], [ca.vertcat(*[ca.vec(ca.horzcat(*[
+            ca.vertcat(err(name, k), ca.DM.zeros(6 - err(name, k).shape[0])) for k in range(1, N + 1)]))
+            for name in levels])])
+        return solver, errs, np.concatenate(lbg), np.concatenate(ubg), cost_fn, rows_fn
+
+    # --- solve ------------------------------------------------------------------------------------
+
+    def solve(self, state: RobotState, refs: References, edf: DistanceField | None,
+              q_guess: np.ndarray, v_guess: np.ndarray, a_guess: np.ndarray,
+              compare: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> ReferenceResult:
+        """All levels of one step, warm-started from a guess (e.g. the controller's warm start).
+
+        `compare` = (q, v, a) of another solution (the controller's): its cost per level is evaluated
+        with the same nonlinear functions (slacks at their smallest feasible values) into `compared_costs`.
+        """
+        compared: list[float] = []
+        p, N = self.params, self.params.N
+        order = tuple(n for n in refs.order if (refs.base if n == "base" else refs.ee) is not None)
+        has_rot = {"base": refs.base is not None and refs.base.yaw is not None,
+                   "ee": refs.ee is not None and refs.ee.rotation is not None}
+        ns = int(self.groups.max()) + 1
+        kin = self.kin(q_guess)
+        M = len(self.robot.spheres)
+        if edf is not None:
+            Pbar = kin.P[1:N]
+            dbar, grad = edf.distance(Pbar), edf.gradient(Pbar)
+        else:
+            Pbar, dbar, grad = np.zeros((N - 1, M, 3)), np.full((N - 1, M), 10.0), np.zeros((N - 1, M, 3))
+        ref_par = []
+        for name in order:
+            if name == "base":
+                xy = np.broadcast_to(refs.base.xy, (N + 1, 2))
+                pos = np.column_stack([xy, np.zeros(N + 1)])
+                yaw = np.zeros((N + 1, 9))
+                if refs.base.yaw is not None:
+                    yaw[:, 0] = np.broadcast_to(np.asarray(refs.base.yaw), (N + 1,))
+                ref_par.append(np.concatenate([pos.ravel(), yaw.ravel()]))
+            else:
+                pos = np.broadcast_to(refs.ee.position, (N + 1, 3))
+                rot = np.zeros((N + 1, 9))
+                if refs.ee.rotation is not None:
+                    rot = np.broadcast_to(refs.ee.rotation, (N + 1, 3, 3)).transpose(0, 2, 1).reshape(N + 1, 9)
+                ref_par.append(np.concatenate([pos.ravel(), rot.ravel()]))
+        x0 = np.concatenate([state.q, self.robot.limits.clip_velocity(state.v)])
+        z0 = np.concatenate([np.column_stack([q_guess, v_guess]).ravel(), a_guess.ravel(), np.zeros(ns * (N - 1))])
+        lbz, ubz = self._bounds(x0, ns)
+        estars: list[np.ndarray] = []
+        costs, times = [], []
+        levels = 1 if p.hierarchy == "weighted" else len(order)
+        z = z0
+        success = True
+        for level in range(levels):
+            key = (order, tuple(sorted(has_rot.items())), level, edf is not None, p.hierarchy)
+            if key not in self._cache:
+                self._cache[key] = self._build(order, has_rot, level, edf is not None)
+            solver, errs, lbg, ubg, cost_fn, rows_fn = self._cache[key]
+            par = np.concatenate([x0, *ref_par, dbar.ravel(), grad.ravel(), Pbar.ravel(),
+                                  *[e.ravel(order="F") for e in estars]])
+            t0 = time.perf_counter()
+            out = solver(x0=z, p=par, lbx=lbz, ubx=ubz, lbg=lbg, ubg=ubg)
+            times.append((time.perf_counter() - t0) * 1e3)
+            success &= bool(solver.stats()["success"])
+            z = np.asarray(out["x"]).ravel()
+            costs.append(float(out["f"]))
+            if compare is not None:
+                zc = self._with_min_slacks(compare, ns, rows_fn, par)
+                compared.append(float(cost_fn(zc, par)))
+            e_all = np.asarray(errs(z, par)).ravel().reshape(len(order), N, 6)
+            estars.append((np.abs(e_all[level]) + p.lex_tolerance).T)
+        n_x = 18 * (N + 1)
+        X = z[:n_x].reshape(N + 1, 18)
+        U = z[n_x:n_x + 9 * N].reshape(N, 9)
+        return ReferenceResult(X[:, :9], X[:, 9:], U, tuple(costs), tuple(times), success, tuple(compared))
+
+    def _with_min_slacks(self, traj: tuple[np.ndarray, np.ndarray, np.ndarray], ns: int, rows_fn: ca.Function,
+                         par: np.ndarray) -> np.ndarray:
+        q, v, a = traj
+        N = self.params.N
+        z = np.concatenate([np.column_stack([q, v]).ravel(), a.ravel(), np.zeros(ns * (N - 1))])
+        rows = np.asarray(rows_fn(z, par)).ravel()
+        if rows.size:
+            need = np.maximum(0.0, -rows.reshape(N - 1, -1))
+            slack = np.zeros((N - 1, ns))
+            for g in range(ns):
+                slack[:, g] = need[:, self.groups == g].max(axis=1)
+            z[-ns * (N - 1):] = slack.ravel()
+        return z
+
+    def _bounds(self, x0: np.ndarray, ns: int) -> tuple[np.ndarray, np.ndarray]:
+        p, N, lim = self.params, self.params.N, self.robot.limits
+        lb_x = np.tile(np.concatenate([lim.q_min, -lim.v_max]), (N + 1, 1))
+        ub_x = np.tile(np.concatenate([lim.q_max, lim.v_max]), (N + 1, 1))
+        widened = np.maximum(lim.v_max, np.abs(x0[9:]) - lim.a_max * p.dt_s + 1e-6)
+        lb_x[1, 9:], ub_x[1, 9:] = -widened, widened
+        lb_x[0], ub_x[0] = x0, x0
+        lb_u = np.tile(-lim.a_max, N)
+        ub_u = np.tile(lim.a_max, N)
+        return (np.concatenate([lb_x.ravel(), lb_u, np.zeros(ns * (N - 1))]),
+                np.concatenate([ub_x.ravel(), ub_u, np.full(ns * (N - 1), np.inf)]))

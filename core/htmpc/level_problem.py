@@ -1,0 +1,129 @@
+"""Assemble one level's QP (METHOD.md eqs. 6–8) as non-zero vectors of the structured layout.
+
+Level l minimises  J_l + J_aux  over the horizon, with
+  J_l   = Σ_k dt · ½‖e_l,k‖²_Q                  (task cost, Gauss-Newton model e ≈ e0 + J (q − q̄))
+  J_aux = Σ_k dt · (½ Q_edot‖J v_k‖²_Q + ½ Q_x‖v_k‖² + ½ Q_u‖a_k‖²)   (8: conditioning only)
+  slack = Σ (slack_linear · s + slack_quadratic · s²)
+subject to the dynamics, box bounds on q, v, a, the collision rows (eq. 10, softened) and, for every
+earlier level i, |e_i,k| ≤ |e_i,k*| + tolerance (7c, hard).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from core.htmpc.collision_constraint import CollisionRows
+from core.htmpc.ocp_qp import NQ, QPLayout, StructuredQP
+from core.htmpc.tasks import Linearisation
+from core.params import HTMPCParams
+
+PROXIMAL = 1e-4
+"""A tiny ‖q − q̄‖² term keeps H positive definite where no task acts (e.g. arm joints in a base task)."""
+
+
+@dataclass(frozen=True)
+class LexBound:
+    """An earlier level's task with its optimum e* (nodes 1..N) for constraint (7c)."""
+
+    lin: Linearisation
+    e_star: np.ndarray
+
+
+@dataclass
+class LevelArrays:
+    """A level's QP data: H and A as non-zeros, g and the row bounds dense."""
+
+    h: np.ndarray
+    g: np.ndarray
+    a: np.ndarray
+    lba: np.ndarray
+    uba: np.ndarray
+
+
+def task_cost(arrays: LevelArrays, qp: StructuredQP, lin: Linearisation, q_bar: np.ndarray,
+              params: HTMPCParams) -> None:
+    """Add dt·½‖e0 + J(q − q̄)‖²_W and the ė part of J_aux, nodes 1..N (in place)."""
+    dt, L = params.dt_s, qp.layout
+    J, e0 = lin.J[1:], lin.e0[1:]
+    JtW = np.swapaxes(J, 1, 2) * lin.weights
+    JtWJ = JtW @ J  # (N, 9, 9)
+    arrays.h[qp.H_qq[1:]] += dt * JtWJ
+    arrays.h[qp.H_vv[1:]] += dt * params.Q_edot * JtWJ
+    lin_term = dt * np.einsum("kjm,km->kj", JtW, e0 - np.einsum("kmj,kj->km", J, q_bar[1:]))
+    for k in range(1, L.N + 1):
+        arrays.g[L.q(k)] += lin_term[k - 1]
+
+
+def base_arrays(qp: StructuredQP, params: HTMPCParams, q_bar: np.ndarray, rows: CollisionRows | None) -> LevelArrays:
+    """Everything but the task costs and (7c): regularisation, slack costs, dynamics and collision rows."""
+    dt, L = params.dt_s, qp.layout
+    h = np.zeros(qp.H_sp.nnz())
+    g = np.zeros(L.nv)
+    eye = np.eye(NQ)
+    h[qp.H_qq] += PROXIMAL * eye
+    for k in range(L.N + 1):
+        g[L.q(k)] -= PROXIMAL * q_bar[k]
+    h[qp.H_vv[1:]] += dt * params.Q_x * eye
+    h[qp.H_aa] += dt * params.Q_u
+    h[qp.H_ss] += 2.0 * params.slack_quadratic
+    for k in range(L.N):
+        g[L.s(k)] += params.slack_linear
+    a = qp.A_dynamics_nz.copy()
+    lba = np.zeros(L.na)
+    uba = np.zeros(L.na)
+    a[qp.A_col_s] = 1.0
+    uba[qp.row_col] = np.inf
+    if rows is not None:
+        a[qp.A_col_q] = rows.a_q[: L.N - 1]
+        a[qp.A_col_v] = rows.a_v[: L.N - 1]
+        lba[qp.row_col] = rows.lb[: L.N - 1]
+    else:
+        lba[qp.row_col] = -np.inf
+    return LevelArrays(h, g, a, lba, uba)
+
+
+def add_lex_rows(arrays: LevelArrays, qp: StructuredQP, bounds: list[LexBound], q_bar: np.ndarray,
+                 tolerance: float) -> None:
+    """(7c): −(|e*| + tol) ≤ e0 + J (q − q̄) ≤ |e*| + tol for every earlier task, nodes 1..N."""
+    if not bounds:
+        return
+    J = np.concatenate([b.lin.J[1:] for b in bounds], axis=1)  # (N, n_lex, 9)
+    e0 = np.concatenate([b.lin.e0[1:] for b in bounds], axis=1)
+    slack = np.concatenate([np.abs(b.e_star) for b in bounds], axis=1) + tolerance
+    offset = e0 - np.einsum("kmj,kj->km", J, q_bar[1:])
+    arrays.a[qp.A_lex_q] = J
+    arrays.lba[qp.row_lex] = -slack - offset
+    arrays.uba[qp.row_lex] = slack - offset
+
+
+def linearised_errors(lin: Linearisation, q: np.ndarray, q_bar: np.ndarray) -> np.ndarray:
+    """e0 + J (q − q̄) at nodes 1..N for a solution q (N+1, 9)."""
+    dq = q[1:] - q_bar[1:]
+    return lin.e0[1:] + np.einsum("kmj,kj->km", lin.J[1:], dq)
+
+
+def variable_bounds(layout: QPLayout, x0: np.ndarray, q_min: np.ndarray, q_max: np.ndarray, v_max: np.ndarray,
+                    a_max: np.ndarray, dt: float, q_bar: np.ndarray | None = None,
+                    trust: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """x_0 fixed; q within limits and within the trust region `trust` around q̄; |v| ≤ v_max (widened at
+    node 1 if the robot moves faster now, so the problem stays feasible); |a| ≤ a_max; slacks ≥ 0."""
+    L = layout
+    lbx = np.empty(L.nv)
+    ubx = np.empty(L.nv)
+    for k in range(L.N + 1):
+        lo, hi = q_min, q_max
+        if trust is not None and q_bar is not None:
+            lo = np.maximum(q_min, np.minimum(q_bar[k] - trust, q_max))
+            hi = np.minimum(q_max, np.maximum(q_bar[k] + trust, q_min))
+        lbx[L.q(k)], ubx[L.q(k)] = lo, hi
+        vb = v_max if k != 1 else np.maximum(v_max, np.abs(x0[NQ:]) - a_max * dt + 1e-6)
+        lbx[L.v(k)], ubx[L.v(k)] = -vb, vb
+        if k < L.N:
+            lbx[L.a(k)], ubx[L.a(k)] = -a_max, a_max
+            lbx[L.s(k)], ubx[L.s(k)] = 0.0, np.inf
+    lbx[L.q(0)] = ubx[L.q(0)] = x0[:NQ]
+    lbx[L.v(0)] = ubx[L.v(0)] = x0[NQ:]
+    lbx[L.s(0)] = ubx[L.s(0)] = 0.0
+    return lbx, ubx

@@ -1,0 +1,195 @@
+"""The structured QP of one HTMPC level, solved by HPIPM through casadi's `conic` interface.
+
+Variables stage by stage: z = [x_0, u_0, x_1, u_1, …, x_N] with x_k = [q_k, v_k] (18) and
+u_k = [a_k (9 accelerations), s_k (M collision slacks)]. Rows in HPIPM's order: for each stage k the
+dynamics gap x_{k+1} = A x_k + B u_k, then the stage's own rows (collision rows with their slack,
+lexicographic rows (7c) of earlier levels); the terminal rows (7c at node N) come last. Stage 0 has
+no rows (x_0 is fixed by bounds), and the terminal node has no slack variables (HPIPM's casadi
+interface has no controls at stage N), so collision rows cover nodes 1…N−1.
+
+Measured trap (FACTS.md): matrices must be passed with their sparse pattern, and the default 1e-8
+residual tolerances make HPIPM run into its iteration limit; 1e-6 converges in ~10 iterations.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+NQ, NX = 9, 18
+HPIPM_OPTIONS = {"mode": "speed_abs", "res_g_max": 1e-6, "res_b_max": 1e-6, "res_d_max": 1e-6, "res_m_max": 1e-6,
+                 "iter_max": 60}
+
+
+@dataclass(frozen=True)
+class QPSolution:
+    z: np.ndarray
+    success: bool
+    status: str
+    iterations: int
+    solve_ms: float
+
+
+class QPLayout:
+    """Index bookkeeping of the stage-wise variables and rows."""
+
+    def __init__(self, N: int, n_spheres: int, n_lex: int, slack_group: np.ndarray | None = None) -> None:
+        self.N, self.M, self.n_lex = N, n_spheres, n_lex
+        self.slack_group = np.arange(n_spheres) if slack_group is None else np.asarray(slack_group, int)
+        """Which slack variable each sphere's row uses (several spheres may share one)."""
+        self.n_slack = int(self.slack_group.max()) + 1
+        self.nu = NQ + self.n_slack
+        self.off_x = np.array([k * (NX + self.nu) for k in range(N + 1)])
+        self.off_u = self.off_x[:N] + NX
+        self.nv = N * (NX + self.nu) + NX
+        self.ng = [0] + [n_spheres + n_lex] * (N - 1) + [n_lex]
+        row = 0
+        self.row_gap, self.row_con = [], []
+        for k in range(N):
+            self.row_gap.append(row)
+            row += NX
+            self.row_con.append(row)
+            row += self.ng[k]
+        self.row_con.append(row)
+        self.na = row + self.ng[N]
+
+    def q(self, k: int) -> slice:
+        return slice(self.off_x[k], self.off_x[k] + NQ)
+
+    def v(self, k: int) -> slice:
+        return slice(self.off_x[k] + NQ, self.off_x[k] + NX)
+
+    def a(self, k: int) -> slice:
+        return slice(self.off_u[k], self.off_u[k] + NQ)
+
+    def s(self, k: int) -> slice:
+        return slice(self.off_u[k] + NQ, self.off_u[k] + self.nu)
+
+    def states(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(q (N+1,9), v (N+1,9), a (N,9)) of a solution vector."""
+        q = np.array([z[self.q(k)] for k in range(self.N + 1)])
+        v = np.array([z[self.v(k)] for k in range(self.N + 1)])
+        a = np.array([z[self.a(k)] for k in range(self.N)])
+        return q, v, a
+
+    def slacks(self, z: np.ndarray) -> np.ndarray:
+        return np.array([z[self.s(k)] for k in range(1, self.N)])
+
+
+def _pattern(layout: QPLayout) -> tuple[np.ndarray, np.ndarray]:
+    """Structural non-zeros of H and A as boolean masks."""
+    L = layout
+    H = np.zeros((L.nv, L.nv), bool)
+    A = np.zeros((L.na, L.nv), bool)
+    for k in range(L.N + 1):
+        H[L.q(k), L.q(k)] = True
+        H[L.v(k), L.v(k)] = True
+        if k < L.N:
+            idx_a = np.arange(L.a(k).start, L.a(k).stop)
+            H[idx_a, idx_a] = True
+            idx_s = np.arange(L.s(k).start, L.s(k).stop)
+            H[idx_s, idx_s] = True
+    eye = np.eye(NQ, dtype=bool)
+    for k in range(L.N):
+        r = L.row_gap[k]
+        A[r:r + NQ, L.q(k)] = eye
+        A[r:r + NQ, L.v(k)] = eye
+        A[r + NQ:r + NX, L.v(k)] = eye
+        A[r:r + NQ, L.a(k)] = eye
+        A[r + NQ:r + NX, L.a(k)] = eye
+        A[r:r + NX, L.off_x[k + 1]:L.off_x[k + 1] + NX] = np.eye(NX, dtype=bool)
+    for k in range(1, L.N):
+        r = L.row_con[k]
+        A[r:r + L.M, L.q(k)] = True
+        A[r:r + L.M, L.v(k)] = True
+        A[r + np.arange(L.M), L.s(k).start + L.slack_group] = True
+        A[r + L.M:r + L.M + L.n_lex, L.q(k)] = True
+    r = L.row_con[L.N]
+    A[r:r + L.n_lex, L.q(L.N)] = True
+    return H, A
+
+
+def _csc_coords(mask: np.ndarray) -> tuple[ca.Sparsity, np.ndarray]:
+    """casadi sparsity of a mask, and a dense map (row, col) → non-zero index (−1 outside the pattern)."""
+    cols, rows = np.nonzero(mask.T)  # transposed C order = column by column, rows ascending (CSC)
+    sp = ca.Sparsity.triplet(mask.shape[0], mask.shape[1], rows.tolist(), cols.tolist())
+    pos = np.full(mask.shape, -1, dtype=np.int64)
+    pos[rows, cols] = np.arange(len(rows))
+    return sp, pos
+
+
+class StructuredQP:
+    """One HPIPM solver for a fixed layout. Matrices travel as non-zero vectors in casadi's order;
+    `*_index` give the non-zero positions of the blocks the level assembly writes."""
+
+    def __init__(self, layout: QPLayout, dt: float) -> None:
+        self.layout = layout
+        self.dt = dt
+        H_mask, A_mask = _pattern(layout)
+        self.H_sp, self.H_pos = _csc_coords(H_mask)
+        self.A_sp, self.A_pos = _csc_coords(A_mask)
+        L = layout
+        opts = {"N": L.N, "nx": [NX] * (L.N + 1), "nu": [L.nu] * L.N + [0], "ng": L.ng,
+                "hpipm": dict(HPIPM_OPTIONS), "error_on_fail": False}
+        self.solver = ca.conic("htmpc_qp", "hpipm", {"h": self.H_sp, "a": self.A_sp}, opts)
+        self.A_dynamics_nz = self._dynamics_nz()
+        self.H_qq = np.stack([self.H_pos[L.q(k), L.q(k)] for k in range(L.N + 1)])
+        self.H_vv = np.stack([self.H_pos[L.v(k), L.v(k)] for k in range(L.N + 1)])
+        self.H_aa = np.stack([np.diag(self.H_pos[L.a(k), L.a(k)]) for k in range(L.N)])
+        self.H_ss = np.stack([np.diag(self.H_pos[L.s(k), L.s(k)]) for k in range(L.N)])
+        inner = range(1, L.N)
+        self.A_col_q = np.stack([self.A_pos[L.row_con[k]:L.row_con[k] + L.M, L.q(k)] for k in inner])
+        self.A_col_v = np.stack([self.A_pos[L.row_con[k]:L.row_con[k] + L.M, L.v(k)] for k in inner])
+        self.A_col_s = np.stack([self.A_pos[L.row_con[k] + np.arange(L.M), L.s(k).start + L.slack_group]
+                                 for k in inner])
+        self.A_lex_q = np.stack([self.A_pos[self.lex_rows(k), L.q(k)] for k in range(1, L.N + 1)])
+        self.row_col = np.stack([L.row_con[k] + np.arange(L.M) for k in inner])
+        self.row_lex = np.stack([self.lex_rows(k) for k in range(1, L.N + 1)])
+
+    def lex_rows(self, k: int) -> np.ndarray:
+        """Row indices of the (7c) rows at node k (1..N)."""
+        L = self.layout
+        start = L.row_con[k] + (L.M if k < L.N else 0)
+        return start + np.arange(L.n_lex)
+
+    def _dynamics_nz(self) -> np.ndarray:
+        """The constant dynamics rows x_{k+1} = [[I, dt I], [0, I]] x_k + [[dt²/2 I], [dt I]] a_k as non-zeros."""
+        L, dt = self.layout, self.dt
+        nz = np.zeros(self.A_sp.nnz())
+        idx = np.arange(NQ)
+        for k in range(L.N):
+            r = L.row_gap[k]
+            q0, v0, a0, x1 = L.q(k).start, L.v(k).start, L.a(k).start, L.off_x[k + 1]
+            nz[self.A_pos[r + idx, q0 + idx]] = 1.0
+            nz[self.A_pos[r + idx, v0 + idx]] = dt
+            nz[self.A_pos[r + NQ + idx, v0 + idx]] = 1.0
+            nz[self.A_pos[r + idx, a0 + idx]] = 0.5 * dt * dt
+            nz[self.A_pos[r + NQ + idx, a0 + idx]] = dt
+            nz[self.A_pos[r + np.arange(NX), x1 + np.arange(NX)]] = -1.0
+        return nz
+
+    def solve(self, h_nz: np.ndarray, g: np.ndarray, a_nz: np.ndarray, lba: np.ndarray, uba: np.ndarray,
+              lbx: np.ndarray, ubx: np.ndarray, guess: np.ndarray | None = None) -> QPSolution:
+        t0 = time.perf_counter()
+        args = {"h": ca.DM(self.H_sp, h_nz), "g": g, "a": ca.DM(self.A_sp, a_nz), "lba": lba, "uba": uba,
+                "lbx": lbx, "ubx": ubx}
+        if guess is not None:
+            args["x0"] = guess
+        if not (np.all(np.isfinite(h_nz)) and np.all(np.isfinite(a_nz)) and np.all(np.isfinite(g))):
+            return QPSolution(np.full(self.layout.nv, np.nan), False, "non-finite QP data", 0, 0.0)
+        try:
+            out = self.solver(**args)
+        except RuntimeError as err:  # casadi raises on malformed input
+            return QPSolution(np.full(self.layout.nv, np.nan), False, f"solver error: {err}", 0,
+                              (time.perf_counter() - t0) * 1e3)
+        stats = self.solver.stats()
+        z = np.asarray(out["x"]).ravel()
+        ok = bool(stats.get("success", False)) and bool(np.all(np.isfinite(z)))
+        return QPSolution(z, ok, str(stats.get("return_status", "")), int(stats.get("iter_count", -1)),
+                          (time.perf_counter() - t0) * 1e3)

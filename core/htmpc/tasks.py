@@ -1,0 +1,91 @@
+"""Pose-tracking tasks of the HTMPC (eq. 5), mink/pink style: `compute_error` and `compute_jacobian`.
+
+Errors are e = reference − actual (position) and Log(R^T R_d) (orientation), one row per node; the
+Jacobian is de/dq, so the Gauss-Newton model is e(q) ≈ e(q̄) + J (q − q̄).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from core.htmpc.horizon_kinematics import HorizonKinematics
+from core.htmpc.so3 import left_jacobian_inverse, log3
+from core.types import BaseReference, EEReference
+
+
+def _broadcast(a: np.ndarray, n: int) -> np.ndarray:
+    a = np.asarray(a, float)
+    return np.broadcast_to(a, (n, *a.shape[1:])) if a.shape[0] == 1 else a[:n]
+
+
+@dataclass(frozen=True)
+class Linearisation:
+    """A task linearised over the horizon: e0 (K, m) at q̄, J (K, m, 9), weights (m,)."""
+
+    name: str
+    e0: np.ndarray
+    J: np.ndarray
+    weights: np.ndarray
+
+
+class BaseTask:
+    """Base pose task: e = [x_d − x, y_d − y, wrap(yaw_d − yaw)] (yaw dropped when the reference has none)."""
+
+    name = "base"
+
+    def __init__(self, weights: tuple[float, float, float]) -> None:
+        self.weights = np.asarray(weights, float)
+
+    def compute_error(self, q: np.ndarray, ref: BaseReference) -> np.ndarray:
+        K = q.shape[0]
+        xy = _broadcast(ref.xy, K) - q[:, :2]
+        if ref.yaw is None:
+            return xy
+        dyaw = _broadcast(np.asarray(ref.yaw)[:, None], K)[:, 0] - q[:, 2]
+        return np.column_stack([xy, (dyaw + np.pi) % (2 * np.pi) - np.pi])
+
+    def compute_jacobian(self, q: np.ndarray, ref: BaseReference) -> np.ndarray:
+        m = 2 if ref.yaw is None else 3
+        J = np.zeros((q.shape[0], m, 9))
+        J[:, np.arange(m), np.arange(m)] = -1.0
+        return J
+
+    def linearise(self, q: np.ndarray, kin: HorizonKinematics, ref: BaseReference) -> Linearisation:
+        e = self.compute_error(q, ref)
+        return Linearisation(self.name, e, self.compute_jacobian(q, ref), self.weights[: e.shape[1]])
+
+
+class EETask:
+    """End-effector pose task: e = [p_d − p ; Log(R^T R_d)] (orientation dropped without a reference rotation).
+
+    d Log(R^T R_d)/dq = −J_l^{-1}(e_r) R^T J_ω, from R(q + dq) ≈ exp([J_ω dq]×) R.
+    """
+
+    name = "ee"
+
+    def __init__(self, weights: tuple[float, ...]) -> None:
+        self.weights = np.asarray(weights, float)
+
+    def compute_error(self, kin: HorizonKinematics, ref: EEReference) -> np.ndarray:
+        K = kin.p.shape[0]
+        ep = _broadcast(ref.position, K) - kin.p
+        if ref.rotation is None:
+            return ep
+        Rd = _broadcast(ref.rotation, K)
+        er = log3(np.swapaxes(kin.R, -1, -2) @ Rd)
+        return np.column_stack([ep, er])
+
+    def compute_jacobian(self, kin: HorizonKinematics, ref: EEReference, e: np.ndarray | None = None) -> np.ndarray:
+        Jp = -kin.Jp
+        if ref.rotation is None:
+            return Jp
+        if e is None:
+            e = self.compute_error(kin, ref)
+        Jr = -left_jacobian_inverse(e[:, 3:]) @ np.swapaxes(kin.R, -1, -2) @ kin.Jw
+        return np.concatenate([Jp, Jr], axis=1)
+
+    def linearise(self, q: np.ndarray, kin: HorizonKinematics, ref: EEReference) -> Linearisation:
+        e = self.compute_error(kin, ref)
+        return Linearisation(self.name, e, self.compute_jacobian(kin, ref, e), self.weights[: e.shape[1]])

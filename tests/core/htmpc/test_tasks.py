@@ -1,0 +1,50 @@
+"""Task errors of eq. (5) and their Gauss-Newton Jacobians against hand values and finite differences."""
+
+import numpy as np
+import pinocchio as pin
+
+from core.htmpc.horizon_kinematics import HorizonKinematicsEvaluator
+from core.htmpc.tasks import BaseTask, EETask
+from core.types import BaseReference, EEReference
+
+
+def test_base_error_hand_computed():
+    task = BaseTask((1.0, 1.0, 0.5))
+    q = np.zeros((2, 9))
+    q[1, :3] = [1.0, 2.0, 3.0]
+    ref = BaseReference(xy=np.array([[2.0, 0.0]]), yaw=np.array([-3.0]))
+    e = task.compute_error(q, ref)
+    np.testing.assert_allclose(e[0], [2.0, 0.0, -3.0])
+    np.testing.assert_allclose(e[1], [1.0, -2.0, -6.0 + 2 * np.pi])  # −6 rad wrapped into (−π, π]
+    J = task.compute_jacobian(q, ref)
+    np.testing.assert_allclose(J[0, :, :3], -np.eye(3))
+    assert task.compute_error(q, BaseReference(xy=np.array([[2.0, 0.0]]))).shape == (2, 2)
+
+
+def test_ee_error_uses_exact_log(robot):
+    rng = np.random.default_rng(2)
+    q = np.array([robot.random_q(rng) for _ in range(4)])
+    kin = HorizonKinematicsEvaluator(robot, 4)(q)
+    Rd = pin.utils.rpyToMatrix(0.3, -1.0, 2.5)
+    pd = np.array([1.0, -0.5, 0.8])
+    e = EETask((1,) * 6).compute_error(kin, EEReference(pd[None], Rd[None]))
+    for k in range(4):
+        T = robot.ee_pose(q[k])
+        np.testing.assert_allclose(e[k, :3], pd - T[:3, 3], atol=1e-12)
+        np.testing.assert_allclose(e[k, 3:], pin.log3(T[:3, :3].T @ Rd), atol=1e-9)
+
+
+def test_ee_jacobian_matches_finite_differences(robot):
+    rng = np.random.default_rng(3)
+    q0 = robot.random_q(rng)
+    task = EETask((1,) * 6)
+    ev = HorizonKinematicsEvaluator(robot, 1)
+    ref = EEReference(np.array([[0.9, 0.2, 1.0]]), pin.utils.rpyToMatrix(0.1, 0.4, -0.7)[None])
+    J = task.compute_jacobian(ev(q0[None]), ref)[0]
+    eps = 1e-6
+    for j in range(9):
+        dq = np.zeros(9)
+        dq[j] = eps
+        plus, minus = task.compute_error(ev((q0 + dq)[None]), ref)[0], task.compute_error(ev((q0 - dq)[None]), ref)[0]
+        fd = (plus - minus) / (2 * eps)
+        np.testing.assert_allclose(J[:, j], fd, atol=1e-6)
