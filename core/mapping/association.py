@@ -1,0 +1,80 @@
+"""Data association of segments to mapped objects (METHOD.md, perception step 3).
+
+The cost of segment j for object i is the mean over the segment's points of their distance to the
+object's surface (its submap EDF M_i), each distance truncated at `cap_m`: zero when the segment lies
+on the known surface, about the displacement when the object was pushed a little, `cap_m` when they
+are unrelated. Only objects whose bounding box, grown by `cap_m`, overlaps the segment's are costed
+(the rest are infinite), so the work grows with the objects near what is seen. The optimal one-to-one
+assignment is scipy's `linear_sum_assignment`; pairs above `gate_m` are rejected.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+_UNREACHABLE = 1e6
+
+
+@dataclass(frozen=True)
+class Assignment:
+    """Matched (segment, object) index pairs with their costs; the unmatched segments and objects."""
+
+    pairs: tuple[tuple[int, int], ...]
+    costs: tuple[float, ...]
+    unmatched_segments: tuple[int, ...]
+    unmatched_objects: tuple[int, ...]
+
+
+def boxes_overlap(lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray, hi_b: np.ndarray, grow: float) -> bool:
+    """Do two axis-aligned boxes overlap once the first is grown by `grow` on every side?"""
+    return bool(np.all(lo_a - grow <= hi_b) and np.all(lo_b <= hi_a + grow))
+
+
+def truncated_mean_distance(distances: np.ndarray, cap_m: float) -> float:
+    """The association cost: mean of per-point surface distances, each truncated at `cap_m`."""
+    return float(np.mean(np.minimum(distances, cap_m))) if len(distances) else cap_m
+
+
+def cost_matrix(n_segments: int, n_objects: int, candidate: Callable[[int, int], bool],
+                cost: Callable[[int, int], float]) -> np.ndarray:
+    """Costs (S×O), infinite where `candidate(j, i)` is False (no overlap: no distances computed)."""
+    C = np.full((n_segments, n_objects), np.inf)
+    for j in range(n_segments):
+        for i in range(n_objects):
+            if candidate(j, i):
+                C[j, i] = cost(j, i)
+    return C
+
+
+def assign(C: np.ndarray, gate_m: float) -> Assignment:
+    """Optimal one-to-one assignment on costs C (segments × objects), pairs with cost < gate_m kept."""
+    n_seg, n_obj = C.shape
+    pairs: list[tuple[int, int]] = []
+    costs: list[float] = []
+    if n_seg and n_obj:
+        finite = np.where(np.isfinite(C), C, _UNREACHABLE)
+        rows, cols = linear_sum_assignment(finite)
+        for j, i in zip(rows, cols, strict=True):
+            if C[j, i] < gate_m:
+                pairs.append((int(j), int(i)))
+                costs.append(float(C[j, i]))
+    seg_done = {j for j, _ in pairs}
+    obj_done = {i for _, i in pairs}
+    return Assignment(tuple(pairs), tuple(costs), tuple(j for j in range(n_seg) if j not in seg_done),
+                      tuple(i for i in range(n_obj) if i not in obj_done))
+
+
+def best_objects(C: np.ndarray, segments: Sequence[int], gate_m: float) -> dict[int, int]:
+    """For each listed segment, the object of lowest cost if below `gate_m` (for merging leftovers)."""
+    out: dict[int, int] = {}
+    for j in segments:
+        if C.shape[1] == 0:
+            break
+        i = int(np.argmin(C[j]))
+        if C[j, i] < gate_m:
+            out[j] = i
+    return out

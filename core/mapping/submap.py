@@ -1,0 +1,117 @@
+"""Object submap M_i: the object's surface at `voxel_m` in the object's own frame (METHOD.md, step 4).
+
+Each occupied voxel keeps the running centroid of the points that fell in it (so the surface is not
+quantised to the voxel grid), a hit count and the number of observations that saw through it since
+it was last hit. Because the voxels live in the object frame, a registration that moves the object
+moves its whole submap with it.
+
+The distance field M_i is evaluated on demand from a KD-tree of the voxel centroids (rebuilt lazily
+when voxels were added or removed; centroids only move within their voxel), distance to the nearest
+surface voxel: the object EDF that POCD compares observations
+against; voxels with |M_i| ≤ theta_zero are the surface by construction.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+_BITS = 21
+_OFFSET = 1 << (_BITS - 1)
+_MASK = (1 << _BITS) - 1
+
+
+def pack(keys: np.ndarray) -> np.ndarray:
+    """Pack integer voxel keys (N×3, each within ±2^20) into one int64 each."""
+    k = keys.astype(np.int64) + _OFFSET
+    return (k[:, 0] << (2 * _BITS)) | (k[:, 1] << _BITS) | k[:, 2]
+
+
+def unpack(keys: np.ndarray) -> np.ndarray:
+    """Integer voxel keys (N×3) from packed int64 keys (inverse of `pack`)."""
+    k = np.stack([(keys >> (2 * _BITS)) & _MASK, (keys >> _BITS) & _MASK, keys & _MASK], axis=1)
+    return k - _OFFSET
+
+
+class ObjectSubmap:
+    """Surface voxels of one object in its frame: centroids (V×3), hit and seen-through counts."""
+
+    def __init__(self, voxel_m: float) -> None:
+        self.voxel_m = voxel_m
+        self._keys = np.zeros(0, dtype=np.int64)  # sorted packed keys
+        self._sums = np.zeros((0, 3))
+        self._counts = np.zeros(0)
+        self.hits = np.zeros(0, dtype=np.int32)
+        self.misses = np.zeros(0, dtype=np.int32)
+        self._tree: cKDTree | None = None
+        self.version = 0
+        """Incremented whenever voxels are added or removed (not when centroids only move)."""
+
+    def __len__(self) -> int:
+        return len(self._keys)
+
+    @property
+    def counts(self) -> np.ndarray:
+        """Points fused into each voxel (V,)."""
+        return self._counts
+
+    @property
+    def points(self) -> np.ndarray:
+        """Surface voxel centroids (V×3) in the object frame."""
+        return self._sums / self._counts[:, None]
+
+    def integrate(self, points: np.ndarray) -> None:
+        """Add observed surface points (N×3, object frame): centroids move, hit counts grow."""
+        if len(points) == 0:
+            return
+        keys = pack(np.floor(points / self.voxel_m).astype(np.int64))
+        uniq, inverse = np.unique(keys, return_inverse=True)
+        sums = np.stack([np.bincount(inverse, weights=points[:, i], minlength=len(uniq)) for i in range(3)], axis=1)
+        counts = np.bincount(inverse, minlength=len(uniq)).astype(float)
+        pos = np.searchsorted(self._keys, uniq)
+        found = pos < len(self._keys)
+        found[found] = self._keys[pos[found]] == uniq[found]
+        old = pos[found]
+        self._sums[old] += sums[found]
+        self._counts[old] += counts[found]
+        self.hits[old] += 1
+        self.misses[old] = 0
+        new = ~found
+        if np.any(new):
+            self._append(uniq[new], sums[new], counts[new])
+            self._tree = None
+            self.version += 1
+
+    def _append(self, keys: np.ndarray, sums: np.ndarray, counts: np.ndarray) -> None:
+        all_keys = np.concatenate([self._keys, keys])
+        order = np.argsort(all_keys, kind="stable")
+        self._keys = all_keys[order]
+        self._sums = np.concatenate([self._sums, sums])[order]
+        self._counts = np.concatenate([self._counts, counts])[order]
+        self.hits = np.concatenate([self.hits, np.ones(len(keys), dtype=np.int32)])[order]
+        self.misses = np.concatenate([self.misses, np.zeros(len(keys), dtype=np.int32)])[order]
+
+    def mark_seen_through(self, mask: np.ndarray) -> None:
+        """Count one seen-through observation for the voxels in `mask` (V,), in `points` order."""
+        self.misses[mask] += 1
+
+    def carve(self, min_misses: int) -> int:
+        """Delete voxels seen through in `min_misses` observations since they were last hit; returns how many."""
+        gone = self.misses >= min_misses
+        n = int(gone.sum())
+        if n:
+            keep = ~gone
+            self._keys, self._sums, self._counts = self._keys[keep], self._sums[keep], self._counts[keep]
+            self.hits, self.misses = self.hits[keep], self.misses[keep]
+            self._tree = None
+            self.version += 1
+        return n
+
+    def distance(self, points: np.ndarray, upper_m: float = np.inf) -> np.ndarray:
+        """M_i at points (N×3, object frame): distance to the nearest surface voxel, at most `upper_m`."""
+        if len(self._keys) == 0:
+            return np.full(len(points), upper_m)
+        if self._tree is None:
+            self._tree = cKDTree(self.points)
+        d, _ = self._tree.query(points, k=1, distance_upper_bound=upper_m)
+        return np.minimum(d, upper_m)

@@ -1,0 +1,138 @@
+"""One object of the object-level map while it is being tracked: frame, submap, belief, counts.
+
+The object frame T_world_object (yaw and translation) is fixed to the body: registration moves it,
+the submap M_i lives in it. The published pose and extent are the upright box fitted to the submap
+in that frame, refitted whenever the submap changes.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from core.mapping.box_fit import BoxFit, fit_upright_box
+from core.mapping.submap import ObjectSubmap
+from core.types import MappedObject, ObjectStatus, Posterior
+
+REFIT_CHANGE = 0.03
+"""Refit the box when the submap's voxel count changed by more than this fraction."""
+
+
+def yaw_pose(yaw: float, position: np.ndarray) -> np.ndarray:
+    """4×4 pose of a rotation by `yaw` about z and a translation."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    T = np.eye(4)
+    T[:2, :2] = [[c, -s], [s, c]]
+    T[:3, 3] = position
+    return T
+
+
+class TrackedObject:
+    """Mutable state of one mapped object (the map's own bookkeeping; snapshots are `MappedObject`s)."""
+
+    def __init__(self, object_id: int, points_world: np.ndarray, voxel_m: float, prior: Posterior,
+                 floor_snap_m: float) -> None:
+        self.id = object_id
+        self.floor_snap_m = floor_snap_m
+        first = fit_upright_box(points_world, floor_z=0.0, floor_snap_m=floor_snap_m)
+        self.T_world_object = yaw_pose(first.yaw, first.centre)
+        self.submap = ObjectSubmap(voxel_m)
+        self.posterior = prior
+        self.observations = 1
+        self.updates = 0
+        self.status = ObjectStatus.ACTIVE
+        self._fit: BoxFit | None = None
+        self._fit_voxels = -1
+        self._world_points: np.ndarray | None = None
+        self.integrate(points_world)
+
+    # --- frames -----------------------------------------------------------------------------------
+
+    def to_object(self, points_world: np.ndarray) -> np.ndarray:
+        R, t = self.T_world_object[:3, :3], self.T_world_object[:3, 3]
+        return (points_world - t) @ R
+
+    def move(self, T_world_delta: np.ndarray) -> None:
+        """Apply a world-frame motion of the body (from registration)."""
+        self.T_world_object = T_world_delta @ self.T_world_object
+        self._world_points = None
+
+    # --- submap -----------------------------------------------------------------------------------
+
+    def integrate(self, points_world: np.ndarray) -> None:
+        """Add an observation's points to the submap."""
+        self.submap.integrate(self.to_object(points_world))
+        self._changed()
+
+    def carve(self, min_misses: int) -> int:
+        """Drop submap voxels repeatedly seen through; returns how many went."""
+        n = self.submap.carve(min_misses)
+        if n:
+            self._changed()
+            self._fit = None
+        return n
+
+    def _changed(self) -> None:
+        self._world_points = None
+
+    @property
+    def world_points(self) -> np.ndarray:
+        """Submap surface points (V×3) in the world."""
+        if self._world_points is None:
+            R, t = self.T_world_object[:3, :3], self.T_world_object[:3, 3]
+            self._world_points = self.submap.points @ R.T + t
+        return self._world_points
+
+    def distance(self, points_world: np.ndarray, upper_m: float) -> np.ndarray:
+        """M_i at world points: distance to the submap surface, at most `upper_m`."""
+        return self.submap.distance(self.to_object(points_world), upper_m)
+
+    # --- box --------------------------------------------------------------------------------------
+
+    @property
+    def fit(self) -> BoxFit:
+        """Upright box around the submap's well-supported voxels, in the object frame.
+
+        Voxels holding fewer than a quarter of the median point count are depth-noise outliers of
+        the surface and are left out. Refitted when the voxel count changed by more than
+        `REFIT_CHANGE` since the last fit (or voxels were carved).
+        """
+        n = len(self.submap)
+        if self._fit is None or abs(n - self._fit_voxels) > REFIT_CHANGE * max(self._fit_voxels, 1):
+            self._fit_voxels = n
+            counts = self.submap.counts
+            solid = counts >= 0.25 * np.median(counts)
+            pts = self.submap.points[solid] if solid.sum() >= 4 else self.submap.points
+            self._fit = fit_upright_box(pts, floor_z=-self.T_world_object[2, 3], floor_snap_m=self.floor_snap_m)
+        return self._fit
+
+    @property
+    def pose(self) -> np.ndarray:
+        """World pose (4×4) of the fitted box's centre."""
+        return self.T_world_object @ self.fit.pose()
+
+    @property
+    def extent(self) -> np.ndarray:
+        return self.fit.extent
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """World axis-aligned bounds of the surface points."""
+        p = self.world_points
+        return p.min(axis=0), p.max(axis=0)
+
+    def inside_box(self, points_world: np.ndarray, grow_m: float) -> np.ndarray:
+        """Mask of world points within the fitted box grown by `grow_m`."""
+        fit = self.fit
+        local = self.to_object(points_world) - fit.centre
+        c, s = math.cos(fit.yaw), math.sin(fit.yaw)
+        u = np.stack([local[:, 0] * c + local[:, 1] * s, -local[:, 0] * s + local[:, 1] * c, local[:, 2]], axis=1)
+        return np.all(np.abs(u) <= fit.extent / 2 + grow_m, axis=1)
+
+    def bounding_sphere(self) -> tuple[np.ndarray, float]:
+        """Centre and radius of a sphere around the fitted box (for frustum culling)."""
+        return self.pose[:3, 3], 0.5 * float(np.linalg.norm(self.extent))
+
+    def snapshot(self) -> MappedObject:
+        return MappedObject(id=self.id, pose=self.pose, extent=self.extent.copy(), points=self.world_points.copy(),
+                            posterior=self.posterior, status=self.status, observations=self.observations)

@@ -1,0 +1,109 @@
+"""Expected-visible surface of an object, checked against a depth image (POCD's forced outlier).
+
+Each surface point of an object's submap is projected into the frame and its expected depth z is
+compared with the measured depth d at its pixel (margin m = visibility margin + 3 · c · z², the
+depth noise model):
+
+- outside the image, behind the camera or beyond the range: not expected (no evidence);
+- |d − z| ≤ m: **hit**, the surface was seen where the map has it;
+- d > z + m, or no return (d = 0) for a point well within range: **through**, free space was seen
+  through the place of the surface: evidence that the object is gone;
+- d < z − m: **occluded** by something in front (or by the object's own near side): no evidence.
+
+Only "through" points count against an object, so unseen and occluded objects keep their belief.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from core.types import DepthFrame
+
+NOT_EXPECTED, HIT, THROUGH, OCCLUDED = 0, 1, 2, 3
+
+
+@dataclass(frozen=True)
+class VisibilityCounts:
+    """Per object and frame: surface points hit, seen through and occluded (out of `total`)."""
+
+    hit: int
+    through: int
+    occluded: int
+    total: int
+
+    @property
+    def expected(self) -> int:
+        """Points that should have been seen: in the frustum, within range, not occluded."""
+        return self.hit + self.through
+
+    @property
+    def through_fraction(self) -> float:
+        """Fraction of the expected-visible surface with free space seen through it."""
+        return self.through / self.expected if self.expected else 0.0
+
+
+@dataclass(frozen=True)
+class FrameView:
+    """A depth frame prepared for many visibility queries: world → camera transform and margins."""
+
+    depth: np.ndarray
+    K: np.ndarray
+    R_cw: np.ndarray
+    t_cw: np.ndarray
+    range_m: float
+    margin_m: float
+    noise_coeff_m: float
+
+    @classmethod
+    def of(cls, frame: DepthFrame, margin_m: float, noise_coeff_m: float, range_m: float | None = None) -> FrameView:
+        R = frame.T_world_camera[:3, :3]
+        t = frame.T_world_camera[:3, 3]
+        limit = frame.range_m if range_m is None else min(range_m, frame.range_m)
+        return cls(frame.depth, frame.K, R.T, -R.T @ t, limit, margin_m, noise_coeff_m)
+
+    @property
+    def camera_position(self) -> np.ndarray:
+        return -self.R_cw.T @ self.t_cw
+
+    def may_see(self, centre: np.ndarray, radius: float) -> bool:
+        """Cheap cull: could a sphere (world centre, radius) be partly in the frustum and in range?"""
+        c = self.R_cw @ centre + self.t_cw
+        if c[2] + radius <= 0.0 or c[2] - radius > self.range_m:
+            return False
+        h, w = self.depth.shape
+        fx, fy = self.K[0, 0], self.K[1, 1]
+        half_x = (w / 2) / fx
+        half_y = (h / 2) / fy
+        z = max(c[2], 1e-6)
+        slack = radius * np.sqrt(1.0 + max(half_x, half_y) ** 2)
+        return abs(c[0]) <= half_x * z + slack and abs(c[1]) <= half_y * z + slack
+
+    def classify(self, points: np.ndarray) -> np.ndarray:
+        """Label every world point (N×3): NOT_EXPECTED, HIT, THROUGH or OCCLUDED."""
+        labels = np.zeros(len(points), dtype=np.int8)
+        if len(points) == 0:
+            return labels
+        p = points @ self.R_cw.T + self.t_cw
+        z = p[:, 2]
+        h, w = self.depth.shape
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = np.rint(self.K[0, 0] * p[:, 0] / z + self.K[0, 2])
+            v = np.rint(self.K[1, 1] * p[:, 1] / z + self.K[1, 2])
+        margin = self.margin_m + 3.0 * self.noise_coeff_m * z**2
+        inside = (z > 0.0) & (u >= 0) & (u < w) & (v >= 0) & (v < h) & (z + margin < self.range_m)
+        idx = np.nonzero(inside)[0]
+        d = self.depth[v[idx].astype(int), u[idx].astype(int)].astype(float)
+        zi, mi = z[idx], margin[idx]
+        lab = np.full(len(idx), OCCLUDED, dtype=np.int8)
+        lab[np.abs(d - zi) <= mi] = HIT
+        lab[(d > zi + mi) | (d <= 0.0)] = THROUGH
+        labels[idx] = lab
+        return labels
+
+
+def count(labels: np.ndarray) -> VisibilityCounts:
+    """Tally of a label array from `FrameView.classify`."""
+    n = np.bincount(labels, minlength=4)
+    return VisibilityCounts(hit=int(n[HIT]), through=int(n[THROUGH]), occluded=int(n[OCCLUDED]), total=len(labels))
