@@ -3,7 +3,9 @@
 h_j(x) = EDF(P_j(q)) − r_j − delta_safe, linearised at the current iterate q̄ with the EDF's value and
 gradient at the predicted sphere centres: h ≈ h̄ + g^T (q − q̄), g = J_Pj(q̄)^T ∇EDF(P̄_j).
 - EDF baseline:  h ≥ 0                      →  g^T q + s ≥ g^T q̄ − h̄
-- CBF (proposed): dh/dt ≥ −gamma h, dh/dt = g^T v  →  g^T v + gamma g^T q + s ≥ gamma (g^T q̄ − h̄)
+- CBF (proposed): dh/dt ≥ −gamma h with dh/dt = ∇EDF^T J_P(q) v linearised at (q̄, v̄):
+  dh/dt ≈ g^T v + c^T (q − q̄), c = ∂(J_P(q) v̄)/∂q^T ∇EDF (the sphere velocity turns with the arm)
+  →  g^T v + (gamma g + c)^T q + s ≥ (gamma g + c)^T q̄ − gamma h̄
 The slack s ≥ 0 (penalised in the cost) keeps the problem feasible when a box appears suddenly.
 """
 
@@ -60,4 +62,6 @@ class CollisionConstraint:
         gq = np.einsum("kmj,kj->km", g, q_bar[1:])
         if self.kind == "edf":
             return CollisionRows(a_q=g, a_v=np.zeros_like(g), lb=gq - h, h=h)
-        return CollisionRows(a_q=self.gamma * g, a_v=g, lb=self.gamma * (gq - h), h=h)
+        c = np.einsum("kmc,kmcj->kmj", grad, kin.dvel_dq[1:]) if kin.dvel_dq is not None else np.zeros_like(g)
+        a_q = self.gamma * g + c
+        return CollisionRows(a_q=a_q, a_v=g, lb=np.einsum("kmj,kj->km", a_q, q_bar[1:]) - self.gamma * h, h=h)

@@ -24,14 +24,18 @@ class HorizonKinematics:
     Jw: np.ndarray
     P: np.ndarray
     JP: np.ndarray
+    dvel_dq: np.ndarray | None = None
+    """∂(J_P(q) v̄)/∂q (K,M,3,9) at the iterate's velocities v̄: how a sphere's velocity changes with q,
+    needed to linearise dh/dt = ∇EDF^T J_P(q) v in q as well as in v (eq. 10)."""
 
 
 @cache
 def _function(robot: RobotModel, n_nodes: int) -> ca.Function:
-    """One column per node: [p (3), R row-major (9), Jp (3×9), Jw (3×9), P (M×3), JP (M×3×9)], all
-    row-major, so numpy reads each block with a reshape (no per-call post-processing)."""
+    """One column per node: [p (3), R row-major (9), Jp (3×9), Jw (3×9), P (M×3), JP (M×3×9),
+    dvel_dq (M×3×9)], all row-major, so numpy reads each block with a reshape (no post-processing)."""
     sym = SymbolicKinematics(robot)
     q = sym.q
+    v = ca.SX.sym("v", q.shape[0])
     R, p = sym.frame("ee")
     dR = ca.jacobian(ca.vec(R), q)
     cols = []
@@ -41,8 +45,10 @@ def _function(robot: RobotModel, n_nodes: int) -> ca.Function:
     Jw = ca.horzcat(*cols)
     P = sym.sphere_centres()  # 3×M
     JP = ca.jacobian(ca.vec(P), q)  # (3M)×9, rows (xyz of sphere 0, sphere 1, ...)
-    flat = ca.vertcat(p, ca.vec(R.T), ca.vec(ca.jacobian(p, q).T), ca.vec(Jw.T), ca.vec(P), ca.vec(JP.T))
-    return ca.Function("kin", [q], [flat]).map(n_nodes, "serial")
+    dvel_dq = ca.jacobian(JP @ v, q)
+    flat = ca.vertcat(p, ca.vec(R.T), ca.vec(ca.jacobian(p, q).T), ca.vec(Jw.T), ca.vec(P), ca.vec(JP.T),
+                      ca.vec(dvel_dq.T))
+    return ca.Function("kin", [q, v], [flat]).map(n_nodes, "serial")
 
 
 class HorizonKinematicsEvaluator:
@@ -54,14 +60,15 @@ class HorizonKinematicsEvaluator:
         self.n_spheres = len(robot.spheres)
         self._fn = _function(robot, n_nodes)
         M = self.n_spheres
-        sizes = [3, 9, 27, 27, 3 * M, 27 * M]
+        sizes = [3, 9, 27, 27, 3 * M, 27 * M, 27 * M]
         self._cuts = np.cumsum([0, *sizes])
 
-    def __call__(self, q: np.ndarray) -> HorizonKinematics:
+    def __call__(self, q: np.ndarray, v: np.ndarray | None = None) -> HorizonKinematics:
         K, M = self.n_nodes, self.n_spheres
-        flat = np.asarray(self._fn(np.asarray(q, float).T)).T  # (K, total)
+        v = np.zeros_like(q) if v is None else v
+        flat = np.asarray(self._fn(np.asarray(q, float).T, np.asarray(v, float).T)).T  # (K, total)
         c = self._cuts
         return HorizonKinematics(
             p=flat[:, c[0]:c[1]], R=flat[:, c[1]:c[2]].reshape(K, 3, 3), Jp=flat[:, c[2]:c[3]].reshape(K, 3, 9),
             Jw=flat[:, c[3]:c[4]].reshape(K, 3, 9), P=flat[:, c[4]:c[5]].reshape(K, M, 3),
-            JP=flat[:, c[5]:c[6]].reshape(K, M, 3, 9))
+            JP=flat[:, c[5]:c[6]].reshape(K, M, 3, 9), dvel_dq=flat[:, c[6]:c[7]].reshape(K, M, 3, 9))

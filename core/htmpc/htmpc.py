@@ -131,7 +131,7 @@ class HTMPC:
                 edf: DistanceField | None) -> StepResult:
         """Linearise at the iterate and solve the levels; returns the last successful level's solution."""
         p = self.params
-        kin = self.kinematics(it.q)
+        kin = self.kinematics(it.q, it.v)
         lins = self._linearise(order, refs, it.q, kin)
         rows: CollisionRows | None = self.collision.rows(it.q, kin, edf) if edf is not None else None
         lim = self.robot.limits
