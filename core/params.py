@@ -131,12 +131,19 @@ class MappingParams:
     """Use every n-th pixel in u and v (at 3 m, 2 px ≈ 2.8 cm < one 5 cm voxel)."""
     floor_height_m: float = 0.03
     """Points below this height are the floor."""
+    floor_snap_m: float = 10.0
+    """An object whose lowest surface point is within this height of the floor is extended down to it.
+    The large default says every object rests on the floor (or on a box it is merged with): the lower
+    part of a box is often below the hand camera's view or behind another box."""
     self_filter_margin_m: float = 0.0
     """Points within the robot's collision spheres grown by this margin are the robot itself."""
 
     # --- segmentation, association, registration ---------------------------------------------------
     min_segment_voxels: int = 8
     """Smaller clusters of occupied voxels are noise, not objects."""
+    cost_sample_points: int = 128
+    """Association costs, the registration trigger and Delta are means over at most this many of a
+    segment's voxels (an even sample; all voxels are fused into the submap)."""
     association_cap_m: float = 0.5
     """Per-point distances to an object's surface are truncated here before averaging (the cost)."""
     association_gate_m: float = 0.25
@@ -165,6 +172,9 @@ class MappingParams:
     10 so the belief remembers about one second of frames and a moved box goes fast."""
     forced_outlier_weight: float = 3.0
     """w_max: a forced outlier adds up to this to beta, scaled by the clear-view evidence (POCD: 1)."""
+    weight_by_clear_view: bool = True
+    """Scale the forced outlier by the clear-view evidence; False adds `forced_outlier_weight` flat (POCD
+    with weight 1)."""
     clear_view_fraction: float = 0.5
     """A missing object is a forced outlier only if at least this fraction of its expected-visible
     surface had free space seen through it."""

@@ -29,9 +29,12 @@ class Assignment:
     unmatched_objects: tuple[int, ...]
 
 
-def boxes_overlap(lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray, hi_b: np.ndarray, grow: float) -> bool:
-    """Do two axis-aligned boxes overlap once the first is grown by `grow` on every side?"""
-    return bool(np.all(lo_a - grow <= hi_b) and np.all(lo_b <= hi_a + grow))
+def overlaps(seg_lo: np.ndarray, seg_hi: np.ndarray, obj_lo: np.ndarray, obj_hi: np.ndarray,
+             grow: float) -> np.ndarray:
+    """(S×O) mask: does segment j's bounding box overlap object i's, grown by `grow` on every side?"""
+    a = np.all(seg_lo[:, None, :] <= obj_hi[None, :, :] + grow, axis=2)
+    b = np.all(obj_lo[None, :, :] - grow <= seg_hi[:, None, :], axis=2)
+    return a & b
 
 
 def truncated_mean_distance(distances: np.ndarray, cap_m: float) -> float:
@@ -39,14 +42,11 @@ def truncated_mean_distance(distances: np.ndarray, cap_m: float) -> float:
     return float(np.mean(np.minimum(distances, cap_m))) if len(distances) else cap_m
 
 
-def cost_matrix(n_segments: int, n_objects: int, candidate: Callable[[int, int], bool],
-                cost: Callable[[int, int], float]) -> np.ndarray:
-    """Costs (S×O), infinite where `candidate(j, i)` is False (no overlap: no distances computed)."""
-    C = np.full((n_segments, n_objects), np.inf)
-    for j in range(n_segments):
-        for i in range(n_objects):
-            if candidate(j, i):
-                C[j, i] = cost(j, i)
+def cost_matrix(candidates: np.ndarray, cost: Callable[[int, int], float]) -> np.ndarray:
+    """Costs (S×O) of the candidate pairs, infinite elsewhere (no distances computed there)."""
+    C = np.full(candidates.shape, np.inf)
+    for j, i in zip(*np.nonzero(candidates), strict=True):
+        C[j, i] = cost(int(j), int(i))
     return C
 
 

@@ -59,9 +59,12 @@ def min_area_yaw(xy: np.ndarray) -> float:
     return yaw - np.pi / 2 if yaw >= np.pi / 4 else yaw
 
 
-def fit_upright_box(points: np.ndarray, floor_z: float | None = None, floor_snap_m: float = 0.0) -> BoxFit:
-    """Upright box around points (N×3); `floor_z` is the floor's height in the points' frame, if known."""
-    yaw = min_area_yaw(points[:, :2])
+def fit_upright_box(points: np.ndarray, floor_z: float | None = None, floor_snap_m: float = 0.0,
+                    yaw: float | None = None) -> BoxFit:
+    """Upright box around points (N×3); `floor_z` is the floor's height in the points' frame, if known.
+    With `yaw` given only the extent is fitted (no hull)."""
+    if yaw is None:
+        yaw = min_area_yaw(points[:, :2])
     c, s = math.cos(yaw), math.sin(yaw)
     u = points[:, 0] * c + points[:, 1] * s
     v = -points[:, 0] * s + points[:, 1] * c

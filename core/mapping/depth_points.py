@@ -2,7 +2,8 @@
 
 Vectorised pinhole unprojection: the unit-depth ray of every used pixel is computed once per
 (intrinsics, image size, stride) and cached; a frame costs one multiply and one rigid transform.
-Pixels with depth 0 (no return) or beyond the range cut-off are dropped.
+Pixels with depth 0 (no return) or beyond the range cut-off are dropped. The per-pixel products run in
+float32 (the depth image's precision); world points come out in float64.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ def _rays(K_bytes: bytes, height: int, width: int, stride: int) -> tuple[np.ndar
     v, u = v.ravel(), u.ravel()
     x = (u - K[0, 2]) / K[0, 0]
     y = (v - K[1, 2]) / K[1, 1]
-    rays = np.stack([x, y, np.ones_like(x)], axis=1)
+    rays = np.stack([x, y, np.ones_like(x)], axis=1).astype(np.float32)
     rays.setflags(write=False)
     return rays, v, u
 
@@ -51,13 +52,13 @@ def unproject_frame(depth: np.ndarray, K: np.ndarray, T_world_camera: np.ndarray
     Depth is planar (along the optical axis, OpenCV camera axes: x right, y down, z forward).
     """
     rays, v, u = pixel_rays(K, depth.shape, stride)
-    z = depth[v, u].astype(float)
+    z = depth[v, u]
     keep = (z > 0.0) & (z <= range_m)
     z = z[keep]
     rays = rays[keep]
-    R, t = T_world_camera[:3, :3], T_world_camera[:3, 3]
-    points = (rays * z[:, None]) @ R.T + t
-    return FramePoints(points=points, depth=z, ray_dz=rays @ R[2])
+    R, t = T_world_camera[:3, :3].astype(np.float32), T_world_camera[:3, 3]
+    points = ((rays * z[:, None]) @ R.T).astype(float) + t
+    return FramePoints(points=points, depth=z.astype(float), ray_dz=(rays @ R[2]).astype(float))
 
 
 def unproject(depth: np.ndarray, K: np.ndarray, T_world_camera: np.ndarray, stride: int = 1,

@@ -60,11 +60,13 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class Observed:
-    """What one frame saw of a matched object: points (N×3, world) and their distances to its surface
-    (truncated at the association cap; Delta uses them, so they are computed once)."""
+    """What one frame saw of a matched object: points (N×3, world), an even sample of them and the
+    sample's distances to the object (truncated at the association cap; the cost, the registration
+    trigger and Delta all use them, so they are computed once)."""
 
     obj: TrackedObject
     points: np.ndarray
+    sample: np.ndarray
     distances: np.ndarray
 
 
@@ -83,6 +85,8 @@ class ObjectMapper:
         self.removed_ids: list[int] = []
         self.timings_ms: dict[str, float] = dict.fromkeys(TIMING_KEYS, 0.0)
         self.frames_integrated = 0
+        self.last_matched = 0
+        """Distinct objects observed (matched) by the last `integrate`."""
         self._next_id = 1
         self._t = 0.0
 
@@ -92,8 +96,10 @@ class ObjectMapper:
         """Fuse every frame of `obs` (one POCD update per object and frame)."""
         timings = dict.fromkeys(TIMING_KEYS, 0.0)
         timings["edf"] = self.timings_ms.get("edf", 0.0)
+        seen: set[int] = set()
         for frame, points in self.scene_points.each(obs, timings):
-            self._integrate_frame(frame, points, timings)
+            seen |= self._integrate_frame(frame, points, timings)
+        self.last_matched = len(seen)
         self._t = latest_time(self._t, obs)
         self.timings_ms = timings
 
@@ -119,7 +125,8 @@ class ObjectMapper:
 
     # --- one frame --------------------------------------------------------------------------------
 
-    def _integrate_frame(self, frame: DepthFrame, points: np.ndarray, timings: dict[str, float]) -> None:
+    def _integrate_frame(self, frame: DepthFrame, points: np.ndarray, timings: dict[str, float]) -> set[int]:
+        """One frame through the pipeline; returns the ids of the objects it observed."""
         p = self.params
         with _timed(timings, "segmentation"):
             segments = segment(voxelise(points, p.voxel_m), p.min_segment_voxels)
@@ -138,33 +145,34 @@ class ObjectMapper:
                 if obj.id not in matched:
                     self._update_unmatched(obj, view)
             self._remove_changed()
-            for seg in leftovers:
-                self._create(seg.points)
+            self._create_all(leftovers)
         self.frames_integrated += 1
+        return matched
 
     # --- association and registration ------------------------------------------------------------
 
     def _associate(self, segments: list[Segment], live: list[TrackedObject]) -> tuple[list[Observed], list[Segment]]:
         """Matched objects with what was observed of them, and the segments left for new objects."""
         p = self.params
-        bounds = [o.bounds() for o in live]
         distances: dict[tuple[int, int], np.ndarray] = {}
-
-        def candidate(j: int, i: int) -> bool:
-            return association.boxes_overlap(bounds[i][0], bounds[i][1], segments[j].lower, segments[j].upper,
-                                             p.association_cap_m)
+        samples = [seg.sample(p.cost_sample_points) for seg in segments]
 
         def cost(j: int, i: int) -> float:
-            distances[j, i] = live[i].distance(segments[j].points, p.association_cap_m)
+            distances[j, i] = live[i].distance(samples[j], p.association_cap_m)
             return association.truncated_mean_distance(distances[j, i], p.association_cap_m)
 
-        C = association.cost_matrix(len(segments), len(live), candidate, cost)
+        seg_bounds = np.array([[s.lower, s.upper] for s in segments]).reshape(-1, 2, 3)
+        obj_bounds = np.array([o.bounds() for o in live]).reshape(-1, 2, 3)
+        candidates = association.overlaps(seg_bounds[:, 0], seg_bounds[:, 1], obj_bounds[:, 0], obj_bounds[:, 1],
+                                          p.association_gate_m)
+        C = association.cost_matrix(candidates, cost)
         result = association.assign(C, p.association_gate_m)
         parts: dict[int, list[int]] = {i: [j] for j, i in result.pairs}
         merges = association.best_objects(C, result.unmatched_segments, p.merge_gate_m)
         for j, i in merges.items():
             parts.setdefault(i, []).append(j)
         observed = [Observed(live[i], np.concatenate([segments[j].points for j in js]),
+                             np.concatenate([samples[j] for j in js]),
                              np.concatenate([distances[j, i] for j in js])) for i, js in parts.items()]
         leftovers = [segments[j] for j in result.unmatched_segments if j not in merges]
         return observed, leftovers
@@ -175,15 +183,15 @@ class ObjectMapper:
         if np.mean(seen.distances > p.registration_trigger_m) < 0.2:
             return
         obj = seen.obj
-        result = align(seen.points, obj.world_points, p.icp_max_correspondence_m, p.icp_max_iterations,
+        result = align(seen.sample, obj.world_points, p.icp_max_correspondence_m, p.icp_max_iterations,
                        normal_radius_m=2.5 * p.voxel_m)
-        moved = seen.points @ result.T[:3, :3].T + result.T[:3, 3]
+        moved = seen.sample @ result.T[:3, :3].T + result.T[:3, 3]
         after_d = obj.distance(moved, p.association_cap_m)
         before = association.truncated_mean_distance(seen.distances, p.association_cap_m)
         after = association.truncated_mean_distance(after_d, p.association_cap_m)
         if after < 0.7 * before and before - after > 0.5 * p.voxel_m:
             obj.move(np.linalg.inv(result.T))
-            seen.distances = obj.distance(seen.points, p.association_cap_m)
+            seen.distances = obj.distance(seen.sample, p.association_cap_m)
             log.debug("object %d moved by %s (cost %.3f → %.3f m)", obj.id, np.round(-result.T[:3, 3], 3),
                       before, after)
 
@@ -193,7 +201,7 @@ class ObjectMapper:
         """POCD update by Delta, then fuse the points and carve what was seen through."""
         p = self.params
         obj = seen.obj
-        within = obj.inside_box(seen.points, p.tau_m)
+        within = obj.inside_box(seen.sample, p.tau_m)
         if np.any(within):
             delta = float(np.mean(seen.distances[within]))
             post = consistency.update(obj.posterior, delta, p.semantic_static_s, p.semantic_weight_k, p.tau_m,
@@ -224,6 +232,8 @@ class ObjectMapper:
         p = self.params
         if counts.expected < p.min_expected_voxels or counts.through_fraction < p.clear_view_fraction:
             return 0.0
+        if not p.weight_by_clear_view:
+            return p.forced_outlier_weight
         return p.forced_outlier_weight * counts.through_fraction * min(1.0, counts.through / p.clear_view_voxels)
 
     def _remove_changed(self) -> None:
@@ -238,10 +248,24 @@ class ObjectMapper:
                 log.info("object %d removed (E[v] = %.2f after %d updates)", obj.id, obj.posterior.consistency,
                          obj.updates)
 
+    def _create_all(self, leftovers: list[Segment]) -> None:
+        """New objects from the leftover segments, largest first; a segment lying on the box of an object
+        created just before (the part of one box that an occluder split off) joins it instead."""
+        p = self.params
+        fresh: list[TrackedObject] = []
+        for seg in leftovers:
+            sample = seg.sample(p.cost_sample_points)
+            costs = [association.truncated_mean_distance(o.distance(sample, p.association_cap_m),
+                                                         p.association_cap_m) for o in fresh]
+            if costs and min(costs) < p.merge_gate_m:
+                fresh[int(np.argmin(costs))].integrate(seg.points)
+            else:
+                fresh.append(self._create(seg.points))
+
     def _create(self, points: np.ndarray) -> TrackedObject:
         p = self.params
         prior = Posterior(mu=p.mu0_m, sigma=p.sigma0_m, alpha=p.alpha0, beta=p.beta0)
-        obj = TrackedObject(self._next_id, points, p.voxel_m, prior, floor_snap_m=p.floor_height_m + 2 * p.voxel_m)
+        obj = TrackedObject(self._next_id, points, p.voxel_m, prior, floor_snap_m=p.floor_snap_m)
         self.objects[obj.id] = obj
         self._next_id += 1
         return obj

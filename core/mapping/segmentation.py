@@ -36,6 +36,11 @@ class Segment:
     points: np.ndarray
     counts: np.ndarray
 
+    def sample(self, n: int) -> np.ndarray:
+        """At most n of the points, evenly strided (costs and Delta are means: a sample estimates them)."""
+        step = max(1, -(-len(self.points) // n))
+        return self.points[::step]
+
     @property
     def lower(self) -> np.ndarray:
         return self.points.min(axis=0)

@@ -5,10 +5,11 @@ quantised to the voxel grid), a hit count and the number of observations that sa
 it was last hit. Because the voxels live in the object frame, a registration that moves the object
 moves its whole submap with it.
 
-The distance field M_i is evaluated on demand from a KD-tree of the voxel centroids (rebuilt lazily
-when voxels were added or removed; centroids only move within their voxel), distance to the nearest
-surface voxel: the object EDF that POCD compares observations
-against; voxels with |M_i| ≤ theta_zero are the surface by construction.
+The distance field M_i is evaluated on demand from a KD-tree of the voxel centroids, distance to the
+nearest surface voxel. The tree is rebuilt after carving or once the submap has grown by
+`TREE_REBUILD_GROWTH` (depth noise adds a few shell voxels every frame; centroids only move within
+their voxel, and the object's box covers what a slightly stale tree misses): the object EDF that POCD
+compares observations against; voxels with |M_i| ≤ theta_zero are the surface by construction.
 """
 
 from __future__ import annotations
@@ -19,6 +20,8 @@ from scipy.spatial import cKDTree
 _BITS = 21
 _OFFSET = 1 << (_BITS - 1)
 _MASK = (1 << _BITS) - 1
+
+TREE_REBUILD_GROWTH = 0.05
 
 
 def pack(keys: np.ndarray) -> np.ndarray:
@@ -44,8 +47,7 @@ class ObjectSubmap:
         self.hits = np.zeros(0, dtype=np.int32)
         self.misses = np.zeros(0, dtype=np.int32)
         self._tree: cKDTree | None = None
-        self.version = 0
-        """Incremented whenever voxels are added or removed (not when centroids only move)."""
+        self._tree_size = 0
 
     def __len__(self) -> int:
         return len(self._keys)
@@ -79,8 +81,6 @@ class ObjectSubmap:
         new = ~found
         if np.any(new):
             self._append(uniq[new], sums[new], counts[new])
-            self._tree = None
-            self.version += 1
 
     def _append(self, keys: np.ndarray, sums: np.ndarray, counts: np.ndarray) -> None:
         all_keys = np.concatenate([self._keys, keys])
@@ -104,14 +104,14 @@ class ObjectSubmap:
             self._keys, self._sums, self._counts = self._keys[keep], self._sums[keep], self._counts[keep]
             self.hits, self.misses = self.hits[keep], self.misses[keep]
             self._tree = None
-            self.version += 1
         return n
 
     def distance(self, points: np.ndarray, upper_m: float = np.inf) -> np.ndarray:
         """M_i at points (N×3, object frame): distance to the nearest surface voxel, at most `upper_m`."""
         if len(self._keys) == 0:
             return np.full(len(points), upper_m)
-        if self._tree is None:
+        if self._tree is None or len(self._keys) > (1.0 + TREE_REBUILD_GROWTH) * self._tree_size:
             self._tree = cKDTree(self.points)
+            self._tree_size = len(self._keys)
         d, _ = self._tree.query(points, k=1, distance_upper_bound=upper_m)
         return np.minimum(d, upper_m)

@@ -16,7 +16,9 @@ from core.mapping.submap import ObjectSubmap
 from core.types import MappedObject, ObjectStatus, Posterior
 
 REFIT_CHANGE = 0.03
-"""Refit the box when the submap's voxel count changed by more than this fraction."""
+"""Refit the box's extent when the submap's voxel count changed by more than this fraction."""
+REFIT_YAW_GROWTH = 1.0
+"""Refit its yaw (a convex hull) only when the submap grew by more than this fraction."""
 
 
 def yaw_pose(yaw: float, position: np.ndarray) -> np.ndarray:
@@ -44,6 +46,8 @@ class TrackedObject:
         self.status = ObjectStatus.ACTIVE
         self._fit: BoxFit | None = None
         self._fit_voxels = -1
+        self._yaw: float | None = None
+        self._yaw_voxels = 0
         self._world_points: np.ndarray | None = None
         self.integrate(points_world)
 
@@ -70,7 +74,7 @@ class TrackedObject:
         n = self.submap.carve(min_misses)
         if n:
             self._changed()
-            self._fit = None
+            self._fit, self._yaw = None, None
         return n
 
     def _changed(self) -> None:
@@ -85,8 +89,11 @@ class TrackedObject:
         return self._world_points
 
     def distance(self, points_world: np.ndarray, upper_m: float) -> np.ndarray:
-        """M_i at world points: distance to the submap surface, at most `upper_m`."""
-        return self.submap.distance(self.to_object(points_world), upper_m)
+        """Distance (m, at most `upper_m`) of world points to the object: to its submap surface M_i or to
+        the faces of its fitted box, whichever is nearer (faces never seen, e.g. behind an occluder,
+        are still the object's)."""
+        local = self.to_object(points_world)
+        return np.minimum(self.submap.distance(local, upper_m), np.abs(self._box_signed_distance(local)))
 
     # --- box --------------------------------------------------------------------------------------
 
@@ -95,8 +102,8 @@ class TrackedObject:
         """Upright box around the submap's well-supported voxels, in the object frame.
 
         Voxels holding fewer than a quarter of the median point count are depth-noise outliers of
-        the surface and are left out. Refitted when the voxel count changed by more than
-        `REFIT_CHANGE` since the last fit (or voxels were carved).
+        the surface and are left out. The extent is refitted when the voxel count changed by more than
+        `REFIT_CHANGE` since the last fit, the yaw when it grew by `REFIT_YAW_GROWTH` (or voxels were carved).
         """
         n = len(self.submap)
         if self._fit is None or abs(n - self._fit_voxels) > REFIT_CHANGE * max(self._fit_voxels, 1):
@@ -104,7 +111,11 @@ class TrackedObject:
             counts = self.submap.counts
             solid = counts >= 0.25 * np.median(counts)
             pts = self.submap.points[solid] if solid.sum() >= 4 else self.submap.points
-            self._fit = fit_upright_box(pts, floor_z=-self.T_world_object[2, 3], floor_snap_m=self.floor_snap_m)
+            if self._yaw is None or n > (1.0 + REFIT_YAW_GROWTH) * self._yaw_voxels:
+                self._yaw, self._yaw_voxels = None, n
+            self._fit = fit_upright_box(pts, floor_z=-self.T_world_object[2, 3], floor_snap_m=self.floor_snap_m,
+                                        yaw=self._yaw)
+            self._yaw = self._fit.yaw
         return self._fit
 
     @property
@@ -121,13 +132,19 @@ class TrackedObject:
         p = self.world_points
         return p.min(axis=0), p.max(axis=0)
 
+    def _box_coordinates(self, local: np.ndarray) -> np.ndarray:
+        """Object-frame points in the fitted box's axes, relative to its centre."""
+        fit = self.fit
+        return (local - fit.centre) @ fit.pose()[:3, :3]
+
+    def _box_signed_distance(self, local: np.ndarray) -> np.ndarray:
+        q = np.abs(self._box_coordinates(local)) - self.fit.extent / 2
+        return np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
+
     def inside_box(self, points_world: np.ndarray, grow_m: float) -> np.ndarray:
         """Mask of world points within the fitted box grown by `grow_m`."""
-        fit = self.fit
-        local = self.to_object(points_world) - fit.centre
-        c, s = math.cos(fit.yaw), math.sin(fit.yaw)
-        u = np.stack([local[:, 0] * c + local[:, 1] * s, -local[:, 0] * s + local[:, 1] * c, local[:, 2]], axis=1)
-        return np.all(np.abs(u) <= fit.extent / 2 + grow_m, axis=1)
+        u = self._box_coordinates(self.to_object(points_world))
+        return np.all(np.abs(u) <= self.fit.extent / 2 + grow_m, axis=1)
 
     def bounding_sphere(self) -> tuple[np.ndarray, float]:
         """Centre and radius of a sphere around the fitted box (for frustum culling)."""
