@@ -239,10 +239,15 @@ class SimWorld:
             return box
 
     def _set_geom_half_size(self, geom: int, half: np.ndarray) -> None:
-        """Resize a box geom in place: size, bounding radius and AABB drive collision and rendering."""
-        self.model.geom_size[geom] = half
-        self.model.geom_rbound[geom] = float(np.linalg.norm(half))
-        self.model.geom_aabb[geom] = np.concatenate([np.zeros(3), half])
+        """Resize a box geom in place. Size, bounding radius, AABB and the body's bounding-volume node
+        all feed collision detection: a stale BVH node (compiled for the parked 5 cm box) made MuJoCo's
+        mid-phase skip real contacts with a resized box."""
+        m = self.model
+        m.geom_size[geom] = half
+        m.geom_rbound[geom] = float(np.linalg.norm(half))
+        m.geom_aabb[geom] = np.concatenate([np.zeros(3), half])
+        body = m.geom_bodyid[geom]
+        m.bvh_aabb[m.body_bvhadr[body]] = np.concatenate([np.zeros(3), half])
 
     def _write_pose(self, slot: int, box: Box) -> None:
         mid = self._slot_mocap[slot]

@@ -144,3 +144,13 @@ def test_walls_are_obstacles(robot):
     world.set_robot(np.r_[3.0, 0.0, 0.0, READY_Q[3:]])
     run(world, [1.0, 0, 0, 0, 0, 0, 0, 0, 0], 2.0)
     assert any(c.box_id == "wall" for c in world.collisions)
+
+
+def test_resized_boxes_collide_off_centre(world):
+    """A big box whose centre is far from the robot but whose face overlaps it must make contact
+    (the mid-phase bounding volume follows the resize)."""
+    world.set_robot(READY_Q)
+    world.add_box(Box("long", (2.3, 0.0, 0.3), (2.0, 0.4, 0.6)), check_robot=False)
+    run(world, [0.4, 0, 0, 0, 0, 0, 0, 0, 0], 3.0)
+    assert world.collisions and world.collisions[0].box_id == "long"
+    assert world.robot_box_distance()[0] > -0.02  # stopped at the face, not inside
