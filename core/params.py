@@ -191,7 +191,10 @@ class MappingParams:
     semantic_static_s: float = 0.0
     """s for every object (all boxes here are 'likely to move')."""
     carve_after_misses: int = 3
-    """A submap voxel seen through this many times more often than it was hit is carved away."""
+    """A submap voxel seen through in this many carving checks since it was last hit is carved away."""
+    carve_check_every: int = 3
+    """A matched object's surface is checked for seen-through voxels every this many observations (a
+    projection of the whole submap: carving is slow evidence, no need to pay for it every frame)."""
 
     # --- voxel-level baseline (OctoMap-style log-odds, projective free-space carving) -------------
     logodds_hit: float = 0.85

@@ -53,32 +53,37 @@ class EDFGrid:
     def window_origin(self) -> np.ndarray:
         return self.origin + self.voxel * np.array([w.start for w in self.window])
 
-    def nodes(self, lo: np.ndarray, hi: np.ndarray) -> tuple[tuple[slice, slice, slice], np.ndarray] | None:
-        """Index slices of the nodes inside the world box [lo, hi] and their positions (…×3), or None."""
+    def block(self, lo: np.ndarray, hi: np.ndarray) -> tuple[tuple[slice, slice, slice], list[np.ndarray]] | None:
+        """Index slices of the nodes inside the world box [lo, hi] and their coordinates along each axis."""
         i0 = np.maximum(np.ceil((lo - self.origin) / self.voxel - 1e-9).astype(int), 0)
         i1 = np.minimum(np.floor((hi - self.origin) / self.voxel + 1e-9).astype(int) + 1, self.shape)
         if np.any(i1 <= i0):
             return None
         axes = [self.origin[a] + self.voxel * np.arange(i0[a], i1[a]) for a in range(3)]
-        pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
-        return (slice(i0[0], i1[0]), slice(i0[1], i1[1]), slice(i0[2], i1[2])), pts
+        return (slice(i0[0], i1[0]), slice(i0[1], i1[1]), slice(i0[2], i1[2])), axes
 
     def empty(self) -> np.ndarray:
         return np.zeros(self.shape, dtype=bool)
 
 
 def mark_boxes(grid: EDFGrid, occupied: np.ndarray, boxes: Iterable[tuple[np.ndarray, np.ndarray]]) -> None:
-    """Set the nodes inside upright boxes, given as (pose 4×4 with yaw only, full extent 3)."""
+    """Set the nodes inside upright boxes, given as (pose 4×4, yaw about z only; full extent 3).
+
+    The inside test is separable (x-y footprint × z range), so it is evaluated on the node axes by
+    broadcasting instead of on every node of the block.
+    """
     for pose, extent in boxes:
-        half = np.asarray(extent) / 2
-        R, t = pose[:3, :3], pose[:3, 3]
-        reach = np.abs(R) @ half
-        block = grid.nodes(t - reach, t + reach)
-        if block is None:
+        half = np.asarray(extent) / 2 + 1e-9
+        c, s, t = pose[0, 0], pose[1, 0], pose[:3, 3]
+        reach = np.array([abs(c) * half[0] + abs(s) * half[1], abs(s) * half[0] + abs(c) * half[1], half[2]])
+        found = grid.block(t - reach, t + reach)
+        if found is None:
             continue
-        index, pts = block
-        local = (pts - t) @ R
-        occupied[index] |= np.all(np.abs(local) <= half + 1e-9, axis=-1)
+        index, (xs, ys, zs) = found
+        dx, dy = xs[:, None] - t[0], ys[None, :] - t[1]
+        footprint = (np.abs(c * dx + s * dy) <= half[0]) & (np.abs(-s * dx + c * dy) <= half[1])
+        rows = np.abs(zs - t[2]) <= half[2]
+        occupied[index] |= footprint[:, :, None] & rows[None, None, :]
 
 
 def mark_points(grid: EDFGrid, occupied: np.ndarray, points: np.ndarray) -> None:

@@ -209,10 +209,12 @@ class ObjectMapper:
             obj.posterior = consistency.cap(post, p.beta_cap)
             obj.updates += 1
         obj.observations += 1
-        labels = view.classify(obj.world_points)
-        obj.submap.mark_seen_through(labels == THROUGH)
+        carve_check = obj.observations % p.carve_check_every == 0
+        if carve_check:
+            obj.submap.mark_seen_through(view.classify(obj.world_points) == THROUGH)
         obj.integrate(seen.points)
-        obj.carve(p.carve_after_misses)
+        if carve_check:
+            obj.carve(p.carve_after_misses)
 
     def _update_unmatched(self, obj: TrackedObject, view: FrameView) -> None:
         """Forced outlier, weighted by the clear view of its place, if it should have been seen."""

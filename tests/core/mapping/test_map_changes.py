@@ -175,3 +175,19 @@ def test_the_voxel_map_keeps_a_phantom_of_a_box_moved_out_of_view(robot, params)
     assert edf.distance(np.array(box.position) + [-0.35, 0.0, 0.0]) < 0.15  # the phantom still repels
     assert voxels.snapshot().objects == ()
     view.close()
+
+
+def test_a_box_taken_off_a_stack_is_carved_out_of_the_stacks_object(robot, params):
+    low, top = Box("low", (2.0, 0.0, 0.25), (0.5, 0.5, 0.5)), Box("top", (2.0, 0.0, 0.7), (0.4, 0.4, 0.4))
+    view = View(robot, (low, top), cameras=("hand",), noise_std_m=NOISE)
+    mapper = ObjectMapper(robot, params)
+    for _ in range(20):
+        mapper.integrate(view.observe())
+    (obj,) = mapper.objects.values()  # touching boxes are one segment, one object
+    assert obj.extent[2] == pytest.approx(0.9, abs=0.05)
+    view.world.move_box("top", OUT_OF_SIGHT)
+    for _ in range(4 * params.carve_check_every):
+        mapper.integrate(view.observe())
+    assert list(mapper.objects) == [obj.id]  # the lower box is still there, same object
+    assert obj.extent[2] == pytest.approx(0.5, abs=0.05)
+    assert obj.pose[2, 3] == pytest.approx(0.25, abs=0.05)
