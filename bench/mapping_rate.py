@@ -5,7 +5,8 @@
 - per-tick ms (both 320 × 240 cameras, 10 Hz) broken down into points, segmentation, association,
   registration, consistency, with 10, 50 and 200 boxes of 0.4 m on a 0.9 m grid ahead of the robot,
   whose base sways ±0.5 rad so the view sweeps them; `visible_boxes_*` is how many objects a tick
-  observed, `ms_per_visible_box_*` the cost per observed box;
+  observed, `ms_per_visible_box_*` the cost per observed box; nothing moves, so any removal there is a
+  false one (`false_removals_sweep_*`);
 - `edf_ms`: the local EDF (4 × 4 × 1.4 m at 0.1 m) around the robot;
 - segmentation: scipy voxel labelling against open3d DBSCAN on the same voxels (time, same clusters);
 - removal: a box seen 1 s and one seen 10 s are moved away while the cameras look at their places,
@@ -96,7 +97,8 @@ def rate(n_boxes: int, ticks: int, robot: RobotModel, params: MappingParams) -> 
            f"frame_ms_p95_{n_boxes}_boxes": float(np.percentile(totals[skip:], 95)),
            f"edf_ms_{n_boxes}_boxes": float(np.median(edf_ms[skip:])),
            f"visible_boxes_{n_boxes}": float(np.mean(visible[skip:])),
-           f"objects_{n_boxes}": float(len(mapper.objects))}
+           f"objects_{n_boxes}": float(len(mapper.objects)),
+           f"false_removals_sweep_{n_boxes}": float(len(mapper.removed_ids))}
     for k, stage in enumerate(STAGES):
         out[f"{stage}_ms_{n_boxes}_boxes"] = float(np.median([r[k] for r in rows[skip:]]))
     return out

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
@@ -25,11 +26,21 @@ class BoxFit:
 
     def pose(self) -> np.ndarray:
         """4×4 pose of the box centre."""
-        c, s = math.cos(self.yaw), math.sin(self.yaw)
         T = np.eye(4)
-        T[:2, :2] = [[c, -s], [s, c]]
+        T[:3, :3] = self.rotation
         T[:3, 3] = self.centre
         return T
+
+    @cached_property
+    def rotation(self) -> np.ndarray:
+        """3×3 rotation of the box axes (yaw about z)."""
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+    @cached_property
+    def half(self) -> np.ndarray:
+        """Half extent (3,)."""
+        return self.extent / 2
 
 
 def _hull(xy: np.ndarray) -> np.ndarray | None:

@@ -78,6 +78,15 @@ def connected_voxels(keys: np.ndarray) -> np.ndarray:
     return labels[k[:, 0], k[:, 1], k[:, 2]] - 1
 
 
+def speckle_free(cloud: VoxelCloud, min_voxels: int) -> np.ndarray:
+    """Keys (V×3) of the voxels in connected clusters of at least `min_voxels` voxels: isolated depth
+    returns (speckle) are dropped, as `segment` drops them for the object map."""
+    labels = connected_voxels(cloud.keys)
+    if len(labels) == 0:
+        return cloud.keys
+    return cloud.keys[np.bincount(labels)[labels] >= min_voxels]
+
+
 def segment(cloud: VoxelCloud, min_voxels: int) -> list[Segment]:
     """Connected clusters of occupied voxels with at least `min_voxels` voxels, largest first."""
     labels = connected_voxels(cloud.keys)

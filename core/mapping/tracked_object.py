@@ -49,6 +49,7 @@ class TrackedObject:
         self._yaw: float | None = None
         self._yaw_voxels = 0
         self._world_points: np.ndarray | None = None
+        self._bounds: np.ndarray | None = None
         self.integrate(points_world)
 
     # --- frames -----------------------------------------------------------------------------------
@@ -60,7 +61,7 @@ class TrackedObject:
     def move(self, T_world_delta: np.ndarray) -> None:
         """Apply a world-frame motion of the body (from registration)."""
         self.T_world_object = T_world_delta @ self.T_world_object
-        self._world_points = None
+        self._changed()
 
     # --- submap -----------------------------------------------------------------------------------
 
@@ -79,6 +80,7 @@ class TrackedObject:
 
     def _changed(self) -> None:
         self._world_points = None
+        self._bounds = None
 
     @property
     def world_points(self) -> np.ndarray:
@@ -127,24 +129,24 @@ class TrackedObject:
     def extent(self) -> np.ndarray:
         return self.fit.extent
 
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """World axis-aligned bounds of the surface points."""
-        p = self.world_points
-        return p.min(axis=0), p.max(axis=0)
-
-    def _box_coordinates(self, local: np.ndarray) -> np.ndarray:
-        """Object-frame points in the fitted box's axes, relative to its centre."""
-        fit = self.fit
-        return (local - fit.centre) @ fit.pose()[:3, :3]
+    def bounds(self) -> np.ndarray:
+        """World axis-aligned bounds (2×3: lower, upper) of the surface points."""
+        if self._bounds is None:
+            p = self.world_points
+            self._bounds = np.array([p.min(axis=0), p.max(axis=0)])
+        return self._bounds
 
     def _box_signed_distance(self, local: np.ndarray) -> np.ndarray:
-        q = np.abs(self._box_coordinates(local)) - self.fit.extent / 2
-        return np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
+        """Signed distance of object-frame points to the fitted box (negative inside)."""
+        fit = self.fit
+        q = np.abs((local - fit.centre) @ fit.rotation) - fit.half
+        return np.sqrt(np.sum(np.maximum(q, 0.0) ** 2, axis=1)) + np.minimum(q.max(axis=1), 0.0)
 
     def inside_box(self, points_world: np.ndarray, grow_m: float) -> np.ndarray:
         """Mask of world points within the fitted box grown by `grow_m`."""
-        u = self._box_coordinates(self.to_object(points_world))
-        return np.all(np.abs(u) <= self.fit.extent / 2 + grow_m, axis=1)
+        fit = self.fit
+        u = (self.to_object(points_world) - fit.centre) @ fit.rotation
+        return np.all(np.abs(u) <= fit.half + grow_m, axis=1)
 
     def bounding_sphere(self) -> tuple[np.ndarray, float]:
         """Centre and radius of a sphere around the fitted box (for frustum culling)."""

@@ -1,7 +1,8 @@
 """Voxel-level baseline map (the paper's comparison): a static-world occupancy grid with carving.
 
 OctoMap-style log-odds per 5 cm voxel (hit +0.85, miss −0.4, clamped to [−2, 3.5], occupied above 0),
-stored sparsely (sorted packed keys). Each depth frame adds its non-floor, non-robot points as hits,
+stored sparsely (sorted packed keys). Each depth frame adds its non-floor, non-robot points as hits
+(voxels in clusters smaller than `min_segment_voxels` are speckle and ignored, as in the object map),
 and carves free space projectively, as a TSDF integrator does: every mapped voxel is projected into
 the frame and counts a miss when the depth measured through its pixel lies beyond it (or nothing
 returned within range). This is ray casting evaluated per voxel, and it only ever touches voxels the
@@ -20,6 +21,7 @@ import numpy as np
 
 from core.mapping.local_edf import EDFGrid, local_edf, mark_points
 from core.mapping.scene_points import ScenePoints, latest_time
+from core.mapping.segmentation import speckle_free, voxelise
 from core.mapping.submap import pack, unpack
 from core.mapping.visibility import THROUGH, FrameView
 from core.params import MappingParams
@@ -74,7 +76,7 @@ class VoxelMap:
     def _integrate_frame(self, frame: DepthFrame, points: np.ndarray, timings: dict[str, float]) -> None:
         p = self.params
         t0 = time.perf_counter()
-        hit_keys = np.unique(pack(np.floor(points / p.voxel_m).astype(np.int64)))
+        hit_keys = np.unique(pack(speckle_free(voxelise(points, p.voxel_m), p.min_segment_voxels)))
         self._carve(frame, hit_keys)
         t1 = time.perf_counter()
         self._add_hits(hit_keys)
