@@ -139,6 +139,7 @@ class HTMPC:
         bounds: list[LexBound] = []
         best, level_ms, level_errors = None, [], []
         failed, message = None, ""
+        guess = None
         for i, level in enumerate(levels):
             n_lex = sum(b.lin.e0.shape[1] for b in bounds)
             qp = self._qp(n_lex)
@@ -148,7 +149,9 @@ class HTMPC:
             add_lex_rows(arrays, qp, bounds, it.q, p.lex_tolerance)
             lbx, ubx = variable_bounds(qp.layout, x0, lim.q_min, lim.q_max, lim.v_max, lim.a_max, p.dt_s,
                                        it.q, self.trust * self.trust_scale)
-            sol = qp.solve(arrays.h, arrays.g, arrays.a, arrays.lba, arrays.uba, lbx, ubx)
+            if guess is None:  # level 1 starts from the linearisation point, level l from level l−1's optimum
+                guess = qp.layout.pack(it.q, it.v, it.a)
+            sol = qp.solve(arrays.h, arrays.g, arrays.a, arrays.lba, arrays.uba, lbx, ubx, guess)
             level_ms.append(sol.solve_ms)
             if not sol.success:
                 failed, message = i, f"level {i + 1} QP failed ({sol.status})"
@@ -156,6 +159,7 @@ class HTMPC:
                 break
             q, v, a = qp.layout.states(sol.z)
             best = (q, v, a, qp.layout.slacks(sol.z))
+            guess = sol.z
             for name in level:
                 e = linearised_errors(lins[name], q, it.q)
                 level_errors.append(e)

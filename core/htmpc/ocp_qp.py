@@ -24,7 +24,9 @@ log = logging.getLogger(__name__)
 
 NQ, NX = 9, 18
 HPIPM_OPTIONS = {"mode": "speed_abs", "res_g_max": 1e-6, "res_b_max": 1e-6, "res_d_max": 1e-6, "res_m_max": 1e-6,
-                 "iter_max": 60}
+                 "iter_max": 60, "warm_start": 1}
+"""`warm_start` 1: the interior point starts from the primal guess (the linearisation point, or the previous
+level's solution): 7 instead of 12 iterations on a closed-loop run, same costs."""
 
 
 @dataclass(frozen=True)
@@ -77,6 +79,15 @@ class QPLayout:
         v = np.array([z[self.v(k)] for k in range(self.N + 1)])
         a = np.array([z[self.a(k)] for k in range(self.N)])
         return q, v, a
+
+    def pack(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """The variable vector of a trajectory (slacks zero): the inverse of `states`."""
+        z = np.zeros(self.nv)
+        idx = self.off_x[:, None] + np.arange(NQ)
+        z[idx] = q
+        z[idx + NQ] = v
+        z[self.off_u[:, None] + np.arange(NQ)] = a
+        return z
 
     def slacks(self, z: np.ndarray) -> np.ndarray:
         return np.array([z[self.s(k)] for k in range(1, self.N)])
@@ -176,20 +187,25 @@ class StructuredQP:
 
     def solve(self, h_nz: np.ndarray, g: np.ndarray, a_nz: np.ndarray, lba: np.ndarray, uba: np.ndarray,
               lbx: np.ndarray, ubx: np.ndarray, guess: np.ndarray | None = None) -> QPSolution:
+        """Solve with H and A given as non-zeros; `guess` (primal) warm-starts HPIPM's interior point.
+
+        (Called with `DM` arguments, not through `Function.buffer()`: with a reused buffer memory and a
+        primal warm start, casadi 3.8's HPIPM interface returned wrong points flagged as successes.)"""
         t0 = time.perf_counter()
-        args = {"h": ca.DM(self.H_sp, h_nz), "g": g, "a": ca.DM(self.A_sp, a_nz), "lba": lba, "uba": uba,
-                "lbx": lbx, "ubx": ubx}
-        if guess is not None:
-            args["x0"] = guess
         if not (np.all(np.isfinite(h_nz)) and np.all(np.isfinite(a_nz)) and np.all(np.isfinite(g))):
             return QPSolution(np.full(self.layout.nv, np.nan), False, "non-finite QP data", 0, 0.0)
+        # DM from a list is ~40 % cheaper than from a numpy array (0.18 vs 0.31 ms for A's 3000 non-zeros)
+        args = {"h": ca.DM(self.H_sp, h_nz.tolist()), "g": g, "a": ca.DM(self.A_sp, a_nz.tolist()), "lba": lba,
+                "uba": uba, "lbx": lbx, "ubx": ubx}
+        if guess is not None:
+            args["x0"] = guess
         try:
             out = self.solver(**args)
         except RuntimeError as err:  # casadi raises on malformed input
             return QPSolution(np.full(self.layout.nv, np.nan), False, f"solver error: {err}", 0,
                               (time.perf_counter() - t0) * 1e3)
         stats = self.solver.stats()
-        z = np.asarray(out["x"]).ravel()
+        z = out["x"].full().ravel()
         ok = bool(stats.get("success", False)) and bool(np.all(np.isfinite(z)))
         return QPSolution(z, ok, str(stats.get("return_status", "")), int(stats.get("iter_count", -1)),
                           (time.perf_counter() - t0) * 1e3)
