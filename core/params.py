@@ -184,6 +184,9 @@ class MappingParams:
     """Fewer expected-visible surface voxels than this is no evidence at all."""
     visibility_margin_m: float = 0.1
     """A surface point is 'hit' when the measured depth is within this (plus noise) of its depth."""
+    through_patch_px: int = 2
+    """A surface point is 'seen through' only if every pixel within this many of its own reads beyond it
+    (surfaces at grazing angles; `core/mapping/visibility.py`)."""
     depth_noise_coeff_m: float = 0.005
     """Sensor model for the margins: depth std = coeff · z² (stereo-like); 3 std are added to margins."""
     semantic_weight_k: float = 0.0

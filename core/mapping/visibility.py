@@ -6,9 +6,21 @@ depth noise model):
 
 - outside the image, behind the camera or beyond the range: not expected (no evidence);
 - |d − z| ≤ m: **hit**, the surface was seen where the map has it;
-- d > z + m, or no return (d = 0) for a point well within range: **through**, free space was seen
-  through the place of the surface: evidence that the object is gone;
-- d < z − m: **occluded** by something in front (or by the object's own near side): no evidence.
+- every pixel within `patch_px` of its pixel reads beyond z + m, or no return (d = 0) for a point well
+  within range: **through**, free space was seen through the place of the surface: evidence that the
+  object is gone;
+- d < z − m: **occluded** by something in front (or by the object's own near side): no evidence;
+- otherwise: its own pixel reads beyond but a neighbour does not (a grazing surface, see below):
+  **hit**; no return but a neighbour is near: **occluded** (no evidence either way).
+
+The patch matters on surfaces seen at a grazing angle (a wall along the corridor the robot drives
+down): a surface voxel whose centroid sits a centimetre or two off the true surface projects onto a
+pixel whose ray meets the surface far behind it (the offset divided by the tangent of the grazing
+angle), so a one-pixel test calls a wall that is there "seen through" and the object would be
+removed or carved. A neighbour k pixels away meets the surface about k · z / f nearer along the
+surface, so ±2 pixels absorb centimetre offsets at the depth range whatever the angle; a box that
+is really gone is seen through over its whole silhouette but a thin rim. Only the points that fail
+the one-pixel test pay for the patch.
 
 Only "through" points count against an object, so unseen and occluded objects keep their belief.
 """
@@ -55,13 +67,15 @@ class FrameView:
     range_m: float
     margin_m: float
     noise_coeff_m: float
+    patch_px: int = 2
 
     @classmethod
-    def of(cls, frame: DepthFrame, margin_m: float, noise_coeff_m: float, range_m: float | None = None) -> FrameView:
+    def of(cls, frame: DepthFrame, margin_m: float, noise_coeff_m: float, range_m: float | None = None,
+           patch_px: int = 2) -> FrameView:
         R = frame.T_world_camera[:3, :3]
         t = frame.T_world_camera[:3, 3]
         limit = frame.range_m if range_m is None else min(range_m, frame.range_m)
-        return cls(frame.depth, frame.K, R.T, -R.T @ t, limit, margin_m, noise_coeff_m)
+        return cls(frame.depth, frame.K, R.T, -R.T @ t, limit, margin_m, noise_coeff_m, patch_px)
 
     @property
     def camera_position(self) -> np.ndarray:
@@ -96,11 +110,24 @@ class FrameView:
         idx = np.nonzero(inside)[0]
         d = self.depth[v[idx].astype(int), u[idx].astype(int)].astype(float)
         zi, mi = z[idx], margin[idx]
-        lab = np.full(len(idx), OCCLUDED, dtype=np.int8)
-        lab[np.abs(d - zi) <= mi] = HIT
-        lab[(d > zi + mi) | (d <= 0.0)] = THROUGH
+        lab = np.full(len(idx), HIT, dtype=np.int8)
+        lab[(d < zi - mi) | (d <= 0.0)] = OCCLUDED  # no return next to a near one: no evidence either way
+        beyond = np.nonzero((d > zi + mi) | (d <= 0.0))[0]
+        if len(beyond):
+            near = self.patch_min(v[idx[beyond]].astype(int), u[idx[beyond]].astype(int))
+            lab[beyond[near > zi[beyond] + mi[beyond]]] = THROUGH
         labels[idx] = lab
         return labels
+
+    def patch_min(self, v: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Nearest return (m) within ±`patch_px` pixels of each pixel (v, u); no return counts as infinitely far."""
+        r = self.patch_px
+        h, w = self.depth.shape
+        off = np.arange(-r, r + 1)
+        vv = np.clip(v[:, None, None] + off[None, :, None], 0, h - 1)
+        uu = np.clip(u[:, None, None] + off[None, None, :], 0, w - 1)
+        d = self.depth[vv, uu].reshape(len(v), -1)
+        return np.where(d > 0.0, d, np.inf).min(axis=1)
 
 
 def count(labels: np.ndarray) -> VisibilityCounts:
