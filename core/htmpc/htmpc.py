@@ -28,13 +28,17 @@ from core.htmpc.level_problem import (
     variable_bounds,
 )
 from core.htmpc.ocp_qp import QPLayout, StructuredQP
-from core.htmpc.safety import braking_plan, plan_is_safe
+from core.htmpc.safety import brake_along, braking_plan, plan_is_safe
 from core.htmpc.tasks import BaseTask, EETask, Linearisation
 from core.params import HTMPCParams
 from core.robot.model import RobotModel
 from core.types import Plan, PlanStatus, References, RobotState
 
 log = logging.getLogger(__name__)
+
+MIN_TRUST_SCALE = 0.125
+"""The yaw/arm trust region never shrinks below 1/8 of `trust_region_rad`, and it recovers by ×2 at
+every new control step, so a bad step cannot freeze the plan."""
 
 
 @dataclass
@@ -85,12 +89,18 @@ class HTMPC:
         """Adapted by the ratio of actual to predicted task-cost decrease (a trust-region SQP)."""
         self._previous: _Iterate | None = None
         self.last_step: StepResult | None = None
+        self._last_plan: Plan | None = None
+        """The plan handed out last: a fault brakes along it (safety.brake_along)."""
+        self.enforce_timeout = True
+        """Live runs discard slow solves (`solve_timeout_ms`); lockstep runs turn this off to stay
+        deterministic (simulated time does not advance while the solver works)."""
 
     def reset(self) -> None:
         """Forget the warm start (e.g. after a reset of the world)."""
         self._previous = None
         self.last_step = None
         self.trust_scale = 1.0
+        self._last_plan = None
 
     # --- building blocks ---------------------------------------------------------------------------
 
@@ -148,7 +158,7 @@ class HTMPC:
                 task_cost(arrays, qp, lins[name], it.q, p)
             add_lex_rows(arrays, qp, bounds, it.q, p.lex_tolerance)
             lbx, ubx = variable_bounds(qp.layout, x0, lim.q_min, lim.q_max, lim.v_max, lim.a_max, p.dt_s,
-                                       it.q, self.trust * self.trust_scale)
+                                       it.q, self._trust_now())
             if guess is None:  # level 1 starts from the linearisation point, level l from level l−1's optimum
                 guess = qp.layout.pack(it.q, it.v, it.a)
             sol = qp.solve(arrays.h, arrays.g, arrays.a, arrays.lba, arrays.uba, lbx, ubx, guess)
@@ -179,14 +189,13 @@ class HTMPC:
         order = [name for name in refs.order if (refs.base if name == "base" else refs.ee) is not None]
         n = len(order)
         if not (np.all(np.isfinite(state.q)) and np.all(np.isfinite(state.v)) and np.isfinite(state.t)):
-            self._previous = None
-            return braking_plan(state, self.robot.limits, p.N, p.dt_s, PlanStatus.STOPPING,
-                                "non-finite robot state: stopping", n_levels=n)
+            return self._fallback(state, n, "non-finite robot state", PlanStatus.STOPPING)
         if not order:
             self._previous = None
             return braking_plan(state, self.robot.limits, p.N, p.dt_s, PlanStatus.STOPPING, "no task: holding",
                                 n_levels=0)
         x0 = np.concatenate([state.q, self.robot.limits.clip_velocity(state.v)])
+        self.trust_scale = min(1.0, 2.0 * self.trust_scale)
         it = self.warm_start(state)
         iters = p.sqp_iters_on_switch if (refs.switched or self._previous is None) else p.sqp_iters
         step, level_ms = None, np.zeros(len(order) if p.hierarchy == "lexicographic" else 1)
@@ -203,13 +212,14 @@ class HTMPC:
         elapsed = (time.perf_counter() - t0) * 1e3
         if step is None or step.failed_level == 0:
             return self._fallback(state, n, step.message if step else "no iteration")
-        if elapsed > p.solve_timeout_ms:
+        if self.enforce_timeout and elapsed > p.solve_timeout_ms:
             return self._fallback(state, n, f"solve took {elapsed:.0f} ms > {p.solve_timeout_ms:.0f} ms")
         plan = self._plan(state, order, refs, step, tuple(level_ms))
         if not plan_is_safe(plan, self.robot.limits, tol=1e-4):
             return self._fallback(state, n, "solution outside the limits")
         self._previous = _Iterate(state.t, step.q, step.v, step.a)
         self.last_step = step
+        self._last_plan = plan
         return plan
 
     def _true_cost(self, q: np.ndarray, kin: HorizonKinematics, order: list[str], refs: References) -> float:
@@ -220,6 +230,12 @@ class HTMPC:
             e = task.compute_error(q, refs.base) if name == "base" else task.compute_error(kin, refs.ee)
             total += 0.5 * float(np.sum(task.weights[: e.shape[1]] * e[1:] ** 2))
         return total
+
+    def _trust_now(self) -> np.ndarray:
+        """The trust region: base x, y fixed (they enter the FK linearly); yaw and arm scaled by the test."""
+        trust = self.trust.copy()
+        trust[2:] *= self.trust_scale
+        return trust
 
     def _adapt_trust(self, step: StepResult, order: list[str], refs: References) -> None:
         """Shrink the trust region when the linear model over-promised, widen it when it was right.
@@ -237,15 +253,25 @@ class HTMPC:
             return
         rho = (old - new) / (old - predicted)
         if rho < 0.25:
-            self.trust_scale = max(self.trust_scale * 0.5, 1.0 / 32.0)
+            self.trust_scale = max(self.trust_scale * 0.5, MIN_TRUST_SCALE)
         elif rho > 0.75:
             self.trust_scale = min(self.trust_scale * 2.0, 1.0)
 
-    def _fallback(self, state: RobotState, n_levels: int, reason: str) -> Plan:
+    def _fallback(self, state: RobotState, n_levels: int, reason: str,
+                  status: PlanStatus = PlanStatus.FALLBACK) -> Plan:
+        """Keep the previous plan, shifted to now, and stop along it within the limits (safety.py); without
+        one (or if it cannot be followed), brake every joint from the measured velocity."""
         log.warning("HTMPC fallback: %s", reason)
+        p, lim = self.params, self.robot.limits
         self._previous = None
-        return braking_plan(state, self.robot.limits, self.params.N, self.params.dt_s, PlanStatus.FALLBACK,
-                            f"{reason}; braking", n_levels=n_levels)
+        plan = None
+        if self._last_plan is not None and np.isfinite(state.t):
+            plan = brake_along(self._last_plan, state.t, lim, p.N, p.dt_s, status,
+                               f"{reason}; braking along the previous plan")
+        if plan is None:
+            plan = braking_plan(state, lim, p.N, p.dt_s, status, f"{reason}; braking", n_levels=n_levels)
+        self._last_plan = plan
+        return plan
 
     def _plan(self, state: RobotState, order: list[str], refs: References, step: StepResult,
               level_ms: tuple[float, ...]) -> Plan:

@@ -2,15 +2,17 @@
 every command that leaves the controller is finite and within the limits."""
 
 import numpy as np
+import pytest
 
 from core.htmpc import HTMPC
+from core.htmpc.safety import brake_along
 from core.params import HTMPCParams
 from core.robot.model import READY_Q
 from core.sim.ground_truth import ground_truth_edf
 from core.sim.scene import Box, Scene
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
-from core.types import BaseReference, LocalEDF, PlanStatus, References, RobotState
+from core.types import BaseReference, LocalEDF, Plan, PlanStatus, References, RobotState
 
 DRIVE = References(order=("base", "ee"), base=BaseReference(np.array([[4.0, 0.0]]), np.zeros(1)))
 
@@ -89,3 +91,74 @@ def test_solver_failures_in_closed_loop_stop_the_robot(robot):
     assert max(speeds[250:300]) > 0.3  # it was moving when the map broke
     assert speeds[-1] < 0.02  # and it stopped
     assert world.collisions == []
+
+
+def constant_turn_plan(robot, t0=1.0, dt=0.3, N=10) -> Plan:
+    """A plan driving the base at 0.8 m/s along x while turning its velocity toward y at 0.5 m/s²."""
+    a = np.zeros((N, 9))
+    a[:, 1] = 0.5
+    v = np.zeros((N + 1, 9))
+    v[:, 0] = 0.8
+    v[:, 1] = 0.5 * dt * np.arange(N + 1)
+    q = np.tile(READY_Q, (N + 1, 1))
+    q[:, 0] = 0.8 * dt * np.arange(N + 1)
+    q[:, 1] = 0.25 * (dt * np.arange(N + 1)) ** 2
+    return Plan(t=t0, dt=dt, q=q, v=v, u=a, base_path=q[:, :3].copy(), ee_path=np.zeros((N + 1, 3)),
+                task_errors=(0.0,), solve_ms=(1.0,), status=PlanStatus.OK)
+
+
+def test_brake_along_keeps_the_previous_path_and_stops_within_limits(robot):
+    prev = constant_turn_plan(robot)
+    plan = brake_along(prev, 1.3, robot.limits, N=10, dt=0.3, status=PlanStatus.FALLBACK, message="test")
+    # hand computation: at s0 = 0.3 the base moves at (0.8, 0.15); braking x alone takes 0.8/2 = 0.4 s,
+    # but the turn's own 0.5 m/s² adds to y, so T_b is the first of 0.4·1.25^i that keeps |ÿ| ≤ 2: with
+    # T_b = 0.5, ÿ(0) = 0.5 − 0.15/0.5 = 0.2 and ẍ = −1.6, both fine; with T_b = 0.4, ẍ = −2.0 is at the limit
+    assert plan.extras["braking_time_s"] == pytest.approx(0.5)
+    # s(t) = s0 + t − t²/(2 T_b): at t = 0.3, s = 0.3 + 0.3 − 0.09 = 0.51 and ṡ = 1 − 0.3/0.5 = 0.4
+    np.testing.assert_allclose(plan.v[1, :2], 0.4 * np.array([0.8, 0.5 * 0.51]))
+    np.testing.assert_allclose(plan.q[1, :2], [0.8 * 0.51, 0.25 * 0.51**2])  # on the previous path
+    assert np.all(plan.v[2:] == 0.0)  # stopped after T_b
+    assert np.all(np.abs(plan.u) <= robot.limits.a_max)
+    assert_commands_safe(robot, plan)
+    # a failure while braking keeps braking: the same plan, with the new reason
+    again = brake_along(plan, 1.4, robot.limits, N=10, dt=0.3, status=PlanStatus.FALLBACK, message="again")
+    assert again.v is plan.v and again.message == "again"
+
+
+def test_qp_failure_in_closed_loop_brakes_along_the_previous_plan(robot):
+    """A real HPIPM failure: from 3 s on the arm's encoder reads a joint 6 rad past its limit, so no
+    trajectory within the joint bounds starts there (the QP is infeasible). The robot stops along its plan."""
+    world = SimWorld(robot, scene=Scene())
+    world.set_robot(READY_Q)
+    sim = SimRobot(world, cameras=())
+    c = HTMPC(robot)
+    plan, plans, commands, base_xy = None, [], [], []
+    for k in range(500):
+        state = sim.observe().state
+        if k % 10 == 0:
+            if k >= 300:
+                q = state.q.copy()
+                q[4] = robot.limits.q_max[4] + 6.0
+                state = RobotState(state.t, q, state.v)
+            plan = c.solve(state, DRIVE, None)
+            plans.append(plan)
+            if k >= 300:
+                assert plan.status == PlanStatus.FALLBACK and "QP failed" in plan.message, plan.message
+        qdot = plan.velocity_at(sim.observe().state.t)
+        commands.append(qdot)
+        assert np.all(np.isfinite(qdot)) and np.all(np.abs(qdot) <= robot.limits.v_max + 1e-9)
+        sim.command(qdot, sim.observe().state.t)
+        sim.step(0.01)
+        base_xy.append(world.state().q[:2].copy())
+    before = plans[29]
+    assert np.hypot(*before.v[0, :2]) > 0.3  # it was driving when the QP started to fail
+    braking = np.array(commands[300:])
+    assert np.all(np.abs(np.diff(braking, axis=0)) / 0.01 <= robot.limits.a_max + 1e-6)  # within a_max
+    assert np.all(braking[-100:] == 0.0)
+    assert np.hypot(*world.state().v[:2]) < 0.02
+    # the robot stopped on the path the last good plan had planned
+    path = before.q[:, :2]
+    stop = base_xy[-1]
+    seg = np.diff(path, axis=0)
+    w = np.clip(np.einsum("ij,ij->i", stop - path[:-1], seg) / np.maximum(np.einsum("ij,ij->i", seg, seg), 1e-12), 0, 1)
+    assert np.min(np.linalg.norm(path[:-1] + w[:, None] * seg - stop, axis=1)) < 0.05
