@@ -2,25 +2,31 @@
 
 Per depth frame:
 
-1. points: unproject (every `pixel_stride`-th pixel, range cut-off), drop the floor and the robot;
-2. segmentation: 5 cm voxels, 26-connected clusters (`segmentation.py`);
-3. association: truncated mean surface distance, Hungarian with a gate; a second segment that lies
-   on a matched object's surface joins it (`association.py`);
-4. registration: when many of a matched segment's points are off the object's surface, point-to-plane
-   ICP moves the object (a box pushed 20 cm keeps its id at its new pose) (`registration.py`);
-5. consistency: a matched object is updated by Delta = mean M_i at the observed points lying within its
-   box (new surface revealed elsewhere is no change), its submap grows and voxels repeatedly seen
-   through are carved; an unmatched object whose expected-visible surface was seen through is a forced
-   outlier (`visibility.py`, `consistency.py`); unseen or occluded objects keep their belief; an object
-   with E[v] < theta_stat after more than `min_observations` updates is removed;
-6. new objects: unmatched segments, with the prior (alpha0, beta0, mu0, sigma0).
+1. points: unproject (every `pixel_stride`-th pixel, range cut-off), drop the floor and the robot
+   (`scene_points.py`);
+2. segmentation: 5 cm voxels, 26-connected clusters of at least `min_segment_voxels` (`segmentation.py`);
+3. association: cost = truncated mean distance of a segment's (sampled) voxels to the object, i.e. to
+   its submap surface M_i or its fitted box's faces, whichever is nearer; Hungarian with a gate; a
+   second segment lying on a matched object (an occluder split it) joins it (`association.py`);
+4. registration: when a fifth of a matched segment lies off the object, point-to-plane ICP moves the
+   object (a box pushed 20–50 cm keeps its id at its new pose; farther moves are a new object and the
+   old one goes by step 5) (`registration.py`);
+5. consistency: a matched object is updated by Delta = mean M_i at the observed points within its box
+   grown by tau (new surface revealed elsewhere is no change), its submap grows, and every third
+   observation its voxels seen through are counted, those seen through three times running carved;
+   an unmatched object whose expected-visible surface was seen through is a forced outlier
+   (`visibility.py`, `consistency.py`); unseen or occluded objects keep their belief; an object with
+   E[v] < theta_stat after more than `min_observations` updates is removed;
+6. new objects: unmatched segments, with the prior (alpha0, beta0, mu0, sigma0), largest first; a
+   segment lying on an object created in the same frame joins it.
 
 Update rate, cap and evidence weighting (our choice next to POCD's)
 -------------------------------------------------------------------
 POCD updates once per frame, caps alpha and beta at 25 and counts a forced outlier as one outlier.
 From a saturated belief (a box seen for a few seconds) that takes about 35 frames of a clear view of
-the empty place to fall under 0.4 (METHOD.md; `tests/core/mapping/test_consistency.py` reproduces it).
-We keep one update per depth frame and the closed-form update itself, and change two things:
+the empty place to fall under 0.4 (METHOD.md; `tests/core/mapping/test_map_consistency.py` reproduces
+3, 6 and 35 for boxes seen 1, 3 and 30 times). We keep one update per depth frame and the closed-form
+update itself, and change two things:
 
 - cap 10 instead of 25: the belief remembers about one second of frames, so saturation costs less;
 - evidence weighting: a forced outlier adds w = w_max · f · min(1, n_through / n_sat) to beta instead of
@@ -29,9 +35,13 @@ We keep one update per depth frame and the closed-form update itself, and change
   only if f ≥ 0.5. A box standing in plain view is hit where the map has it (f ≈ 0), so it never
   receives a forced outlier whatever the weight; a box that is gone has f ≈ 1.
 
-With these, from saturation a fully seen-through place removes the object after 5 frames (cap 10,
-w = 3); a box seen once goes after 3 frames (the "more than two updates" rule). bench/mapping_rate.py
-measures the removal figures on rendered frames.
+From saturation a fully seen-through place then removes the object after 5 frames (cap 10, w = 3),
+a box seen once after 3 (the "more than two updates" rule). Measured on rendered frames with depth
+noise (bench/mapping_rate.py, both cameras at 10 Hz): boxes seen 1 s and 10 s are removed 3 ticks
+(6 frames) after their places come into clear view, against 14 and 18 ticks with POCD's cap 25 and
+unit forced outlier; 0 false removals over 60 s of still boxes swept in and out of the image, nor
+over 150 ticks of 10–200 boxes; the voxel baseline still held 1583 phantom voxels when they went
+and 96 after 60 ticks. With the hand camera alone, removal took 5–6 frames (tests).
 """
 
 from __future__ import annotations

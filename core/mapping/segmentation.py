@@ -4,9 +4,10 @@ Points are voxelised at `voxel_m` (each voxel keeps the centroid of its points) 
 are grouped by 26-connectivity with `scipy.ndimage.label` on the dense grid spanning them. Two boxes
 are separate segments when at least one empty voxel lies between them.
 
-Measured on this machine (bench/mapping_rate.py, `segmentation_*` figures): on the same voxel
-centroids open3d's DBSCAN (eps = 1.8 voxels, the same neighbourhood) gives the same clusters but is
-slower than the labelling; we keep the labelling. The dense grid stays small because points come
+Measured on this machine (bench/mapping_rate.py, `segmentation_*` figures, 60 rendered frames of a
+field of boxes): on the same voxels open3d's DBSCAN (eps = 1.8 voxels, the same 26-neighbourhood,
+min_points 1) gives exactly the same clusters on every frame but takes 6.6 ms a frame against 1.0 ms
+for the labelling (median, machine under load); we keep the labelling. The dense grid stays small because points come
 from within the depth range (at most (2 · range / voxel)³ cells).
 """
 

@@ -2,7 +2,10 @@
 
 The object frame T_world_object (yaw and translation) is fixed to the body: registration moves it,
 the submap M_i lives in it. The published pose and extent are the upright box fitted to the submap
-in that frame, refitted whenever the submap changes.
+in that frame, refitted whenever the submap changes. Whether that box stands for the object (a box,
+or touching boxes that make one) or only bounds it (the L- or ring-shaped rows of an aisle) is
+decided by the object's `Footprint`: only a box-like object is solid in the EDF and has its unseen
+box faces count as its surface.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ import math
 import numpy as np
 
 from core.mapping.box_fit import BoxFit, fit_upright_box
+from core.mapping.footprint import Footprint
 from core.mapping.submap import ObjectSubmap
 from core.types import MappedObject, ObjectStatus, Posterior
 
@@ -34,9 +38,10 @@ class TrackedObject:
     """Mutable state of one mapped object (the map's own bookkeeping; snapshots are `MappedObject`s)."""
 
     def __init__(self, object_id: int, points_world: np.ndarray, voxel_m: float, prior: Posterior,
-                 floor_snap_m: float) -> None:
+                 floor_snap_m: float, box_fill_max_m: float = np.inf) -> None:
         self.id = object_id
         self.floor_snap_m = floor_snap_m
+        self.box_fill_max_m = box_fill_max_m
         first = fit_upright_box(points_world, floor_z=0.0, floor_snap_m=floor_snap_m)
         self.T_world_object = yaw_pose(first.yaw, first.centre)
         self.submap = ObjectSubmap(voxel_m)
@@ -50,6 +55,9 @@ class TrackedObject:
         self._yaw_voxels = 0
         self._world_points: np.ndarray | None = None
         self._bounds: np.ndarray | None = None
+        self._footprint: Footprint | None = None
+        self._box_like = True
+        self._grown: dict[float, Footprint] = {}
         self.integrate(points_world)
 
     # --- frames -----------------------------------------------------------------------------------
@@ -69,6 +77,11 @@ class TrackedObject:
         """Add an observation's points to the submap."""
         self.submap.integrate(self.to_object(points_world))
         self._changed()
+
+    def absorb(self, other: TrackedObject) -> None:
+        """Take over the surface of another object (a duplicate of part of this one)."""
+        self.integrate(other.world_points)
+        self.observations = max(self.observations, other.observations)
 
     def carve(self, min_misses: int) -> int:
         """Drop submap voxels repeatedly seen through; returns how many went."""
@@ -95,7 +108,10 @@ class TrackedObject:
         the faces of its fitted box, whichever is nearer (faces never seen, e.g. behind an occluder,
         are still the object's)."""
         local = self.to_object(points_world)
-        return np.minimum(self.submap.distance(local, upper_m), np.abs(self._box_signed_distance(local)))
+        d = self.submap.distance(local, upper_m)
+        if self.box_like:
+            d = np.minimum(d, np.abs(self._box_signed_distance(local)))
+        return d
 
     # --- box --------------------------------------------------------------------------------------
 
@@ -118,7 +134,33 @@ class TrackedObject:
             self._fit = fit_upright_box(pts, floor_z=-self.T_world_object[2, 3], floor_snap_m=self.floor_snap_m,
                                         yaw=self._yaw)
             self._yaw = self._fit.yaw
+            self._footprint = Footprint.of(pts, self.submap.voxel_m)
+            self._box_like = self._footprint.box_gap(self._fit) <= self.box_fill_max_m
+            self._grown = {}
         return self._fit
+
+    @property
+    def box_like(self) -> bool:
+        """Does the fitted box stand for the object (every point of its footprint within `box_fill_max_m`
+        of the seen surface)? If not, the object is its surface, columns filled down to the floor."""
+        _ = self.fit
+        return self._box_like
+
+    @property
+    def footprint(self) -> Footprint:
+        """Occupied x-y cells of the surface in the object frame (refitted with the box)."""
+        _ = self.fit
+        assert self._footprint is not None
+        return self._footprint
+
+    def covers(self, points_world: np.ndarray, grow_m: float) -> np.ndarray:
+        """Mask of world points within the object grown by `grow_m`: its box if box-like, else its
+        footprint's columns (from the floor to the top of the surface)."""
+        if self.box_like:
+            return self.inside_box(points_world, grow_m)
+        if grow_m not in self._grown:
+            self._grown[grow_m] = self.footprint.grown(grow_m)
+        return self._grown[grow_m].contains(self.to_object(points_world))
 
     @property
     def pose(self) -> np.ndarray:
@@ -130,10 +172,11 @@ class TrackedObject:
         return self.fit.extent
 
     def bounds(self) -> np.ndarray:
-        """World axis-aligned bounds (2×3: lower, upper) of the surface points."""
+        """World axis-aligned bounds (2×3: lower, upper) of the fitted box."""
         if self._bounds is None:
-            p = self.world_points
-            self._bounds = np.array([p.min(axis=0), p.max(axis=0)])
+            pose = self.pose
+            reach = np.abs(pose[:3, :3]) @ self.fit.half
+            self._bounds = np.array([pose[:3, 3] - reach, pose[:3, 3] + reach])
         return self._bounds
 
     def _box_signed_distance(self, local: np.ndarray) -> np.ndarray:
