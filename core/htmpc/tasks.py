@@ -43,7 +43,7 @@ class BaseTask:
         xy = _broadcast(ref.xy, K) - q[:, :2]
         if ref.yaw is None:
             return xy
-        dyaw = _broadcast(np.asarray(ref.yaw)[:, None], K)[:, 0] - q[:, 2]
+        dyaw = _broadcast(np.asarray(ref.yaw, float).reshape(-1, 1), K)[:, 0] - q[:, 2]
         return np.column_stack([xy, (dyaw + np.pi) % (2 * np.pi) - np.pi])
 
     def compute_jacobian(self, q: np.ndarray, ref: BaseReference) -> np.ndarray:
