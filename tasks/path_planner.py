@@ -93,16 +93,35 @@ def resample(points: np.ndarray, spacing_m: float) -> np.ndarray:
     return np.stack([np.interp(samples, s, points[:, 0]), np.interp(samples, s, points[:, 1])], axis=1)
 
 
-def plan_path(grid: OccupancyGrid, start_xy: np.ndarray, goals_xy: list[np.ndarray],
-              spacing_m: float = 0.1) -> np.ndarray:
-    """Smoothed path (P×2) from start through each goal in order. Goals inside obstacles raise."""
+def _reachable_goal(grid: OccupancyGrid, goal: np.ndarray, last: bool, snap_m: float,
+                    notes: list[str]) -> np.ndarray | None:
+    """The goal itself if free; else an intermediate waypoint is skipped (None) and the final goal moves to
+    the nearest free cell within `snap_m`; farther than that it raises."""
+    if not grid.blocked[grid.cell(goal)]:
+        return goal
+    where = f"({goal[0]:.2f}, {goal[1]:.2f})"
+    if not last:
+        notes.append(f"waypoint {where} is too close to an obstacle: skipped")
+        return None
+    free = grid.centre(_nearest_free(grid, grid.cell(goal)))
+    if np.linalg.norm(free - goal) > snap_m:
+        raise NoPathError(f"goal {where} is too close to an obstacle for the base")
+    notes.append(f"goal {where} is too close to an obstacle: going to ({free[0]:.2f}, {free[1]:.2f})")
+    return free
+
+
+def plan_path(grid: OccupancyGrid, start_xy: np.ndarray, goals_xy: list[np.ndarray], spacing_m: float = 0.1,
+              snap_m: float = 0.5, notes: list[str] | None = None) -> np.ndarray:
+    """Smoothed path (P×2) from start through each goal in order (blocked goals: see `_reachable_goal`;
+    what was changed is appended to `notes`)."""
+    notes = notes if notes is not None else []
     pieces = [np.asarray(start_xy, float)[None]]
     here = np.asarray(start_xy, float)
-    for goal in goals_xy:
-        goal = np.asarray(goal, float)
+    for i, goal in enumerate(goals_xy):
+        goal = _reachable_goal(grid, np.asarray(goal, float), i == len(goals_xy) - 1, snap_m, notes)
+        if goal is None:
+            continue
         g_cell = grid.cell(goal)
-        if grid.blocked[g_cell]:
-            raise NoPathError(f"goal ({goal[0]:.2f}, {goal[1]:.2f}) is too close to an obstacle for the base")
         s_cell = grid.cell(here)
         if grid.blocked[s_cell]:
             s_cell = _nearest_free(grid, s_cell)

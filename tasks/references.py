@@ -3,8 +3,10 @@
 Base subtasks: the base reference advances along the planned path at `nominal_speed_mps`, heading
 along the path, turning to the goal yaw near the end; the EE reference keeps the hand at its ready
 offset on the reference base and aims the hand camera at the path point `lookahead_m` ahead.
-EE subtasks: the EE reference is the (constant) target pose; the base reference holds the pose the
-base had when the subtask began.
+EE subtasks: the EE reference is the (constant) target pose; the (lower-priority) base reference is a
+stance from which the target is within comfortable reach: on the line from the target to where the
+base was when the subtask began, at the ready pose's reach, facing the target. Holding the start pose
+instead pulled the arm straight (singular) whenever the target was at the edge of its reach.
 """
 
 from __future__ import annotations
@@ -101,10 +103,23 @@ def navigation_references(path: np.ndarray, s_now: float, yaw_now: float, goal_y
                       switched=switched)
 
 
-def manipulation_references(position: np.ndarray, rotation: np.ndarray | None, hold_base: np.ndarray,
+def manipulation_stance(target: np.ndarray, base_start: np.ndarray, reach_m: float) -> np.ndarray:
+    """Base pose (x, y, yaw) `reach_m` from the target's floor projection, toward the start, facing it."""
+    d = np.asarray(target[:2], float) - base_start[:2]
+    dist = float(np.linalg.norm(d))
+    if dist < 1e-6:
+        return base_start.copy()
+    u = d / dist
+    xy = target[:2] - reach_m * u if dist > reach_m else base_start[:2]
+    yaw = float(np.arctan2(u[1], u[0]))
+    yaw = base_start[2] + (yaw - base_start[2] + np.pi) % (2 * np.pi) - np.pi
+    return np.array([xy[0], xy[1], yaw])
+
+
+def manipulation_references(position: np.ndarray, rotation: np.ndarray | None, stance: np.ndarray,
                             order: tuple[str, ...], switched: bool) -> References:
-    """References for an EE subtask: a constant EE target, the base held where the subtask began."""
-    base = BaseReference(xy=np.asarray(hold_base[:2], float)[None], yaw=np.array([hold_base[2]]))
+    """References for an EE subtask: a constant EE target and a base stance (`manipulation_stance`)."""
+    base = BaseReference(xy=np.asarray(stance[:2], float)[None], yaw=np.array([stance[2]]))
     rot = None if rotation is None else np.asarray(rotation, float)[None]
     return References(order=order, base=base, ee=EEReference(np.asarray(position, float)[None], rot),
                       switched=switched)

@@ -20,7 +20,13 @@ from core.robot.model import READY_Q, RobotModel
 from core.types import References, RobotState
 from tasks.occupancy import OccupancyGrid
 from tasks.path_planner import NoPathError, plan_path
-from tasks.references import manipulation_references, navigation_references, path_arclength, project_on_path
+from tasks.references import (
+    manipulation_references,
+    manipulation_stance,
+    navigation_references,
+    path_arclength,
+    project_on_path,
+)
 from tasks.schema import BaseSubtask, EESubtask, TaskSequence
 
 log = logging.getLogger(__name__)
@@ -154,7 +160,12 @@ class Sequencer:
         self._s_progress = 0.0
         self._plan_t = -math.inf
         self._grid_sig = None
-        self._hold_base = state.q[:3].copy()
+        sub = self.active
+        if isinstance(sub, EESubtask):
+            reach = float(np.hypot(*self.ee_offset_base[:2]))
+            self._hold_base = manipulation_stance(np.array(sub.goal().position), state.q[:3], reach)
+        else:
+            self._hold_base = state.q[:3].copy()
         self._ee_waypoint = 0
 
     def _set_progress(self, outcome: Outcome, elapsed: float, held: float, pos: float, ori: float,
@@ -203,12 +214,16 @@ class Sequencer:
         if self.path is not None and sig == self._grid_sig and not due:
             return
         goals = [w.xy() for w in sub.path()]
+        notes: list[str] = []
         try:
-            path = plan_path(grid, state.q[:2], goals) if grid is not None else np.array([state.q[:2], *goals])
-            message = ""
+            if grid is not None:
+                path = plan_path(grid, state.q[:2], goals, notes=notes)
+            else:
+                path = np.array([state.q[:2], *goals])
+            message = "; ".join(notes)
         except NoPathError as err:
-            path = np.array([state.q[:2], *goals])
-            message = f"{err}; heading straight, the MPC keeps clear"
+            path = state.q[None, :2].copy()  # hold here until the map changes (a box moves away)
+            message = f"{err}: waiting"
         self.path = path
         self._s_progress = 0.0
         self._plan_t, self._grid_sig = t, sig

@@ -163,11 +163,12 @@ def _passable(boxes: list[Box], start: tuple[float, float], goal: tuple[float, f
 
 
 def random_scene(seed: int, n_boxes: int = 8, area_m: float = 5.0, two_layers: bool = True,
-                 box_m: float = PAPER_BOX_M, clearance_m: float = 0.6, max_tries: int = 500) -> Scene:
+                 box_m: float = PAPER_BOX_M, clearance_m: float = 0.85, max_tries: int = 2000) -> Scene:
     """The paper's random scene: `n_boxes` boxes of `box_m` in an `area_m` square around the origin.
 
     The robot starts left of the area facing +x and the goal is right of it. With `two_layers`, some
-    boxes are stacked on others. Scenes are resampled until a disc of `clearance_m` can pass.
+    boxes are stacked on others. Scenes are resampled until a disc of `clearance_m` can pass (default: the
+    base sphere 0.55 m plus delta_safe 0.25 m plus 5 cm, so the controller can get through).
     """
     if n_boxes < 1:
         raise ValueError("a random scene needs at least one box")

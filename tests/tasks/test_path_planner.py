@@ -48,3 +48,14 @@ def test_enclosed_goal_has_no_path():
     grid = OccupancyGrid.from_points(surface_points(ring), (-5, 5, -5, 5), 0.1, 0.3)
     with pytest.raises(NoPathError, match="no collision-free"):
         plan_path(grid, np.array([4.0, 0.0]), [np.array([0.0, 0.0])])
+
+
+def test_blocked_waypoint_skipped_and_goal_snapped():
+    box = Box("b", (2.0, 0.0, 0.3))
+    grid = OccupancyGrid.from_points(surface_points([box]), (-5, 5, -5, 5), 0.1, 0.8)
+    notes = []
+    near_face = np.array([2.0 - 0.3 - 0.75, 0.0])  # 5 cm inside the inflated region in front of the box
+    path = plan_path(grid, np.array([-2.0, 0.0]), [np.array([2.0, 0.0]), near_face], notes=notes)
+    assert "skipped" in notes[0] and "going to" in notes[1]
+    assert np.linalg.norm(path[-1] - near_face) < 0.3
+    assert grid.is_free(path[-1])

@@ -61,13 +61,17 @@ def test_timeout_fails_with_clear_status(robot):
     assert "timed out" in s.status_line() and "far" in s.status_line()
 
 
-def test_manipulation_holds_the_base_and_orders_ee_first(robot):
-    seq = TaskSequence(subtasks=[EESubtask(target=EEPose(position=(2.0, 0.0, 0.8), rpy_deg=(0, 90, 0)))])
+def test_manipulation_stance_and_ee_first(robot):
+    seq = TaskSequence(subtasks=[EESubtask(target=EEPose(position=(2.5, 0.0, 0.8), rpy_deg=(0, 90, 0)))])
     s = Sequencer(robot, seq)
-    refs = s.update(state_at(0.5, -0.2, 0.3), None, 0.0)
+    refs = s.update(state_at(0.0, 0.0, 0.3), None, 0.0)
     assert refs.order == ("ee", "base")
-    np.testing.assert_allclose(refs.base.xy[0], [0.5, -0.2])
+    reach = np.hypot(*s.ee_offset_base[:2])
+    np.testing.assert_allclose(refs.base.xy[0], [2.5 - reach, 0.0], atol=1e-9)  # target at comfortable reach
+    assert refs.base.yaw[0] == pytest.approx(0.0)  # facing the target
     np.testing.assert_allclose(refs.ee.rotation[0][:, 0], [0, 0, -1], atol=1e-12)
+    near = Sequencer(robot, seq).update(state_at(2.0, 0.0, 0.3), None, 0.0)
+    np.testing.assert_allclose(near.base.xy[0], [2.0, 0.0])  # already within reach: stay
 
 
 def test_path_replans_around_new_obstacles(robot):
