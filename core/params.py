@@ -101,6 +101,8 @@ class HTMPCParams:
     """Real-time iteration: one QP per level per control step."""
     sqp_iters_on_switch: int = 5
     """More Gauss-Newton iterations right after a subtask switch (the warm start is far off then)."""
+    sqp_step_tol: float = 1e-3
+    """Those iterations stop early once no joint of the plan moved more than this (m or rad) in one."""
     control_rate_hz: float = 10.0
     command_rate_hz: float = 100.0
     hierarchy: str = "lexicographic"
@@ -148,6 +150,19 @@ class MappingParams:
     """Per-point distances to an object's surface are truncated here before averaging (the cost)."""
     association_gate_m: float = 0.25
     """A segment matches an object when its truncated mean distance to the surface is below this."""
+    explain_m: float = 0.1
+    """A point within this of an object's surface is explained by it (association cost, sharing a segment
+    among touching objects)."""
+    split_fraction: float = 0.1
+    """An object explaining at least this fraction of a segment gets its share of the segment's points."""
+    duplicate_fraction: float = 0.5
+    """An object whose explained points are at least this fraction explained by a larger one is merged into it."""
+    box_fill_max_m: float = 0.75
+    """An object is box-like (solid box in the EDF) when its box's footprint is everywhere within this of
+    the seen surface (`core/mapping/footprint.py`); a box seen from two sides qualifies, walls around a
+    corridor do not."""
+    registration_max_extent_m: float = 1.6
+    """Only box-like objects with a footprint no longer than this are registered (pushable things)."""
     merge_gate_m: float = 0.08
     """A second segment lying on an already matched object's surface (mean distance below this) joins it."""
     registration_trigger_m: float = 0.04
@@ -226,8 +241,9 @@ class SequencerParams:
     lookahead_m: float = 1.5
     """In navigation the hand camera looks at the path point this far ahead."""
     grid_cell_m: float = 0.1
-    inflation_m: float = 0.6
-    """Obstacles are grown by this radius for A* (base sphere 0.55 m plus a little)."""
+    inflation_m: float = 0.8
+    """Obstacles are grown by this radius for A*: the base sphere (0.55 m) plus delta_safe (0.25 m), the
+    clearance the controller keeps, so planned paths are ones the controller can follow."""
     obstacle_z_m: tuple[float, float] = (0.05, 2.0)
     """Occupied points between these heights block the base."""
     replan_period_s: float = 1.0
