@@ -26,7 +26,7 @@ CHECKS = [not_a_server_error, status_code_conformance, content_type_conformance,
 MIN_CASES = 500
 
 
-def _fuzz(bridge: BridgeServer, examples_per_mode: int, checks: list = CHECKS) -> Counter:
+def fuzz(bridge: BridgeServer, examples_per_mode: int, checks: list = CHECKS) -> Counter:
     """Run every operation with `examples_per_mode` valid cases and, where it takes any input, as many invalid
     ones; count the responses by status."""
     schema = schemathesis.openapi.from_url(f"{bridge.url}/openapi.json")
@@ -51,6 +51,6 @@ def _fuzz(bridge: BridgeServer, examples_per_mode: int, checks: list = CHECKS) -
 @pytest.mark.slow
 def test_fuzzing_before_a_runtime_is_attached_finds_only_the_documented_503(bridge: BridgeServer) -> None:
     """A bridge whose runtime is not attached yet answers the runtime's routes with 503, as documented."""
-    statuses = _fuzz(bridge, 25, [c for c in CHECKS if c is not not_a_server_error])
+    statuses = fuzz(bridge, 25, [c for c in CHECKS if c is not not_a_server_error])
     assert sum(statuses.values()) >= MIN_CASES, statuses
     assert not any(code >= 500 and code != 503 for code in statuses), statuses

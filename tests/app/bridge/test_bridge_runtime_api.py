@@ -1,0 +1,81 @@
+"""The operator API over real HTTP against a real `Runtime`: status, sequence loading, run control and
+scene edits on the embedded simulation; refusals when the runtime drives a robot through the bridge."""
+
+from __future__ import annotations
+
+import httpx
+import pytest
+
+from app.bridge.server import BridgeServer
+from tests.app.bridge.conftest import BAD_SEQUENCE as BAD
+from tests.app.bridge.conftest import EXAMPLE_SEQUENCE as EXAMPLE
+
+
+def test_status_routes_report_the_runtime(api: httpx.Client, sim_runtime) -> None:
+    state = api.get("/api/state").json()
+    assert len(state["q"]) == 9 and state["run_state"] == "idle"
+    assert api.get("/api/plan").json() == {"run_state": "idle", "plan": None}
+    progress = api.get("/api/progress").json()
+    assert [s["outcome"] for s in progress["subtasks"]] == ["pending"] * len(sim_runtime.sequence.subtasks)
+    assert api.get("/api/sequence").json()["name"] == sim_runtime.sequence.name
+    assert api.get("/api/health").json()["run_state"] == "idle"
+
+
+def test_loading_a_sequence_replaces_it_and_a_bad_one_changes_nothing(api: httpx.Client, sim_runtime) -> None:
+    version = sim_runtime.sequence_version
+    refused = api.put("/api/sequence", json={"yaml": BAD})
+    assert refused.status_code == 422
+    assert refused.json()["problems"][0] == {"field": "subtasks.0.target.y", "line": 5,
+                                             "message": "Input should be a valid number, unable to parse string "
+                                                        "as a number"}
+    assert sim_runtime.sequence_version == version
+    loaded = api.put("/api/sequence", json={"yaml": EXAMPLE}).json()
+    assert loaded["version"] == version + 1 and loaded["subtasks"] == 4
+    assert sim_runtime.sequence.name == "two pick-up stops"
+
+
+def test_run_control_follows_the_runtime(api: httpx.Client, sim_runtime) -> None:
+    assert api.post("/api/run/start").json()["run_state"] == "running"
+    assert api.post("/api/run/step").status_code == 409
+    assert api.post("/api/run/pause").json()["run_state"] == "paused"
+    assert api.post("/api/run/step", json={"seconds": 0.5}).json()["run_state"] == "paused"
+    assert api.post("/api/run/stop").json()["run_state"] == "idle"
+    assert api.post("/api/run/emergency-stop").json()["run_state"] == "emergency_stop"
+    assert api.post("/api/run/reset").json()["run_state"] == "idle"
+    assert api.post("/api/run/config", json={"constraint": "edf", "speed": 2.0}).status_code == 200
+    assert sim_runtime.config.constraint == "edf" and sim_runtime.config.speed == 2.0
+
+
+def test_scene_edits_while_simulating(api: httpx.Client, sim_runtime) -> None:
+    added = api.post("/api/scene/boxes", json={"id": "crate", "position": [3.0, 2.0, 0.3]})
+    assert added.status_code == 201 and added.json()["size"] == [0.6, 0.6, 0.6]
+    assert "crate" in {b["id"] for b in api.get("/api/scene").json()["boxes"]}
+    moved = api.put("/api/scene/boxes/crate", json={"position": [3.5, 2.0, 0.3], "yaw": 0.5}).json()
+    assert moved["position"] == [3.5, 2.0, 0.3] and moved["yaw"] == 0.5
+    assert api.put("/api/scene/boxes/ghost", json={"position": [0, 0, 0]}).status_code == 404
+    inside = api.post("/api/scene/boxes", json={"id": "inside", "position": [0.0, 0.0, 0.3]})
+    assert inside.status_code == 422 and inside.json()["detail"]
+    assert api.delete("/api/scene/boxes/crate").json()["id"] == "crate"
+    assert "crate" not in {b.id for b in sim_runtime.scene().boxes}
+    assert len(api.post("/api/scene/randomise", json={"seed": 3, "n_boxes": 8}).json()["boxes"]) >= 8
+
+
+def test_a_runtime_on_the_bridge_refuses_simulation_only_requests(api: httpx.Client, bridge: BridgeServer,
+                                                                  bridge_runtime) -> None:
+    assert api.get("/api/scene").status_code == 409
+    assert api.post("/api/scene/boxes", json={"id": "crate", "position": [3.0, 2.0, 0.3]}).status_code == 409
+    assert api.post("/api/run/config", json={"speed": 2.0}).status_code == 409
+    assert api.post("/api/run/pause").json()["run_state"] == "paused"
+    assert api.post("/api/run/step").status_code == 409
+
+
+def test_start_needs_fresh_robot_state(api: httpx.Client, bridge: BridgeServer, bridge_runtime) -> None:
+    refused = api.post("/api/run/start")
+    assert refused.status_code == 409 and "no fresh robot state" in refused.json()["detail"]
+    assert bridge_runtime.run_state.value == "idle"
+
+
+@pytest.mark.slow
+def test_start_with_a_driver_connected(api: httpx.Client, bridge: BridgeServer, bridge_runtime, start_driver) -> None:
+    start_driver()
+    assert api.post("/api/run/start").json()["run_state"] == "running"

@@ -1,0 +1,37 @@
+"""The watchdog with a live runtime driving the sim driver through the bridge: kill the driver mid-run,
+zero velocity goes out within 200 ms of the kill and the run pauses."""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+import numpy as np
+import pytest
+
+from app.bridge.server import BridgeServer
+from app.snapshot import RunState
+from tests.app.bridge.conftest import wait_until
+
+DEADLINE_S = 0.2
+
+
+@pytest.mark.slow
+def test_killing_the_driver_mid_run_zeroes_the_command_and_pauses_the_run(bridge: BridgeServer, bridge_runtime,
+                                                                           start_driver, caplog) -> None:
+    driver = start_driver()
+    bridge_runtime.start_live()
+    bridge_runtime.start()
+    assert wait_until(lambda: np.linalg.norm(bridge.robot.observe().state.v) > 0.05, timeout_s=60), \
+        bridge_runtime.status_line()
+    assert bridge.link.last_command.reason == "runtime"
+    killed_at = time.monotonic()
+    os.kill(driver.proc.pid, signal.SIGKILL)
+    assert wait_until(lambda: bridge_runtime.run_state == RunState.PAUSED, timeout_s=5)
+    zero = next(e for e in bridge.link.events if e.kind == "zero_command" and e.at >= killed_at)
+    assert zero.at - killed_at <= DEADLINE_S, f"zero command {zero.at - killed_at:.3f} s after the kill"
+    assert wait_until(lambda: bridge.link.last_command.at > zero.at, timeout_s=2)
+    last = bridge.link.last_command
+    assert last.reason in ("stale_state", "not_running") and not np.any(last.qdot)
+    assert "the driver disconnected: zero velocity commanded, run paused" in caplog.text
