@@ -55,9 +55,11 @@ class DepthCamera:
             depth = self._renderer.render().astype(np.float64)
             T = self.world.robot.camera_pose(self.world.state().q, self.name)
             t = self.world.time
-        if self.params.noise_std_m > 0.0:
+        no_return = (depth > self.params.range_m) | (depth < self.params.near_m)
+        if self.params.noise_std_m > 0.0:  # noise on real returns only: the sky at 50 m must not land in range
             depth = depth + self._rng.normal(0.0, 1.0, depth.shape) * self.params.noise_std_m * depth**2
-        depth[(depth > self.params.range_m) | (depth < self.params.near_m)] = 0.0
+            no_return |= (depth > self.params.range_m) | (depth < self.params.near_m)
+        depth[no_return] = 0.0
         return DepthFrame(t=t, camera=self.name, depth=depth.astype(np.float32), K=self.K.copy(),
                           T_world_camera=T, range_m=self.params.range_m)
 

@@ -95,3 +95,12 @@ def test_renderer_follows_recompile(robot):
     world.add_box(Box("front", (2.0, 0.0, 0.3)))  # grows the pool: a new model
     assert cam.render().depth[200, 160] > 0
     cam.close()
+
+
+def test_noise_never_brings_far_pixels_into_range(robot):
+    world = SimWorld(robot, SimParams())
+    world.load_scene(Scene((Box("near", (1.8, 0.0, 0.3)),)))
+    world.set_robot(READY_Q)
+    clean = DepthCamera(world, "base", CameraParams()).render().depth
+    noisy = DepthCamera(world, "base", CameraParams(noise_std_m=0.05), seed=1).render().depth
+    assert np.all(noisy[clean == 0] == 0)  # sky and far floor stay "no return"
