@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -35,6 +35,9 @@ from core.robot.model import RobotModel
 from core.types import Plan, PlanStatus, References, RobotState
 
 log = logging.getLogger(__name__)
+
+PREBUILT_LEX_ROWS = (0, 2, 3, 6)
+"""(7c) rows a level can carry: none (level 1), base xy or xy+yaw, EE position or pose (level 2)."""
 
 MIN_TRUST_SCALE = 0.125
 """The yaw/arm trust region never shrinks below 1/8 of `trust_region_rad`, and it recovers by ×2 at
@@ -68,6 +71,8 @@ class StepResult:
     """Smallest barrier value h = EDF − r − delta_safe at node 1 (m); NaN without a map."""
     kin_new: HorizonKinematics | None = None
     """FK at the new iterate (set by the trust-region test)."""
+    level_solutions: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)
+    """(q, v, a) of each level's QP solution, in order (the last is the plan)."""
 
 
 class HTMPC:
@@ -84,6 +89,8 @@ class HTMPC:
         self.collision = CollisionConstraint(robot.sphere_radii, p.delta_safe_m, p.gamma, p.constraint)
         self._qps: dict[int, StructuredQP] = {}
         self.slack_group = _slack_groups(robot, p.slack_groups)
+        for n_lex in PREBUILT_LEX_ROWS:  # 15–45 ms each: not inside the first control step
+            self._qp(n_lex)
         self.trust = np.array([p.trust_region_m] * 2 + [p.trust_region_rad] * 7)
         self.trust_scale = 1.0
         """Adapted by the ratio of actual to predicted task-cost decrease (a trust-region SQP)."""
@@ -147,7 +154,7 @@ class HTMPC:
         lim = self.robot.limits
         levels = [order] if p.hierarchy == "weighted" else [[name] for name in order]
         bounds: list[LexBound] = []
-        best, level_ms, level_errors = None, [], []
+        best, level_ms, level_errors, solutions = None, [], [], []
         failed, message = None, ""
         guess = None
         for i, level in enumerate(levels):
@@ -169,6 +176,7 @@ class HTMPC:
                 break
             q, v, a = qp.layout.states(sol.z)
             best = (q, v, a, qp.layout.slacks(sol.z))
+            solutions.append((q, v, a))
             guess = sol.z
             for name in level:
                 e = linearised_errors(lins[name], q, it.q)
@@ -178,7 +186,8 @@ class HTMPC:
             return StepResult(it.q, it.v, it.a, np.zeros(0), level_ms, level_errors, 0, message, kin, lins, it.q)
         q, v, a, s = best
         min_h = float(rows.h[0].min()) if rows is not None else float("nan")
-        return StepResult(q, v, a, s, level_ms, level_errors, failed, message, kin, lins, it.q, min_h)
+        return StepResult(q, v, a, s, level_ms, level_errors, failed, message, kin, lins, it.q, min_h,
+                          level_solutions=solutions)
 
     # --- the control step --------------------------------------------------------------------------
 
@@ -206,7 +215,10 @@ class HTMPC:
                 if step.failed_level == 0:
                     break
                 self._adapt_trust(step, order, refs)
+                converged = float(np.max(np.abs(step.q - it.q))) < p.sqp_step_tol
                 it = _Iterate(state.t, step.q, step.v, step.a)
+                if converged:
+                    break
         except (ValueError, FloatingPointError, np.linalg.LinAlgError) as err:
             return self._fallback(state, n, f"controller error: {err}")
         elapsed = (time.perf_counter() - t0) * 1e3

@@ -10,6 +10,7 @@ speed ratio and the cost gap.
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import casadi as ca
@@ -42,6 +43,15 @@ class ReferenceResult:
     level_ms: tuple[float, ...]
     success: bool
     compared_costs: tuple[float, ...] = ()
+    eval_ms: tuple[float, ...] = ()
+    """Per level, the time IPOPT spent in casadi's (interpreted) function and derivative evaluations;
+    level_ms − eval_ms is IPOPT's own work, a lower bound for a compiled formulation."""
+    level_objectives: tuple[float, ...] = ()
+    """J_l + J_aux of IPOPT's level-l solution (without the slack penalty)."""
+    compared_objectives: tuple[float, ...] = ()
+    """J_l + J_aux of the compared level-l solutions."""
+    compared_violations: tuple[float, ...] = ()
+    """Largest violation of IPOPT's (exact-kinematics) collision rows by each compared solution."""
 
 
 class IpoptReference:
@@ -125,6 +135,7 @@ class IpoptReference:
             g.append(X[:, k + 1] - ca.vertcat(qn, vn))
             lbg.append(np.zeros(18))
             ubg.append(np.zeros(18))
+        objective = cost  # J_l + J_aux: what the comparison uses (the slack penalty is exact-penalty bookkeeping)
         cost += ca.sum1(ca.sum2(p.slack_linear * S + p.slack_quadratic * S**2))
         if with_edf:
             for k in range(1, N):
@@ -150,9 +161,9 @@ class IpoptReference:
         ubg.insert(0, np.zeros(18))
         nlp = {"x": z, "p": par, "f": cost, "g": ca.vertcat(*g)}
         opts = {"ipopt": {"print_level": 0, "tol": self.tol, "max_iter": 300, "warm_start_init_point": "yes",
-                          "mu_init": 1e-3}, "print_time": False}
+                          "mu_init": 1e-3, "sb": "yes"}, "print_time": False}
         solver = ca.nlpsol("reference", "ipopt", nlp, opts)
-        cost_fn = ca.Function("cost", [z, par], [cost])
+        cost_fn = ca.Function("cost", [z, par], [cost, objective])
         rows = g[-(M * (N - 1)):] if with_edf else []
         rows_fn = ca.Function("collision_rows", [z, par], [ca.vertcat(*rows) if rows else ca.DM.zeros(0)])
         errs = ca.Function("errors", [z, par], [ca.vertcat(*[ca.vec(ca.horzcat(*[
@@ -164,11 +175,12 @@ class IpoptReference:
 
     def solve(self, state: RobotState, refs: References, edf: DistanceField | None,
               q_guess: np.ndarray, v_guess: np.ndarray, a_guess: np.ndarray,
-              compare: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> ReferenceResult:
+              compare: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]] = ()) -> ReferenceResult:
         """All levels of one step, warm-started from a guess (e.g. the controller's warm start).
 
-        `compare` = (q, v, a) of another solution (the controller's): its cost per level is evaluated
-        with the same nonlinear functions (slacks at their smallest feasible values) into `compared_costs`.
+        `compare[l]` = (q, v, a) of another solver's level-l solution (the controller's; the last one is
+        reused for further levels): its level-l objective is evaluated with the same nonlinear functions
+        (slacks at their smallest feasible values) into `compared_costs`.
         """
         compared: list[float] = []
         p, N = self.params, self.params.N
@@ -202,7 +214,7 @@ class IpoptReference:
         z0 = np.concatenate([np.column_stack([q_guess, v_guess]).ravel(), a_guess.ravel(), np.zeros(ns * (N - 1))])
         lbz, ubz = self._bounds(x0, ns)
         estars: list[np.ndarray] = []
-        costs, times = [], []
+        costs, times, evals, objectives, compared_obj, violations = [], [], [], [], [], []
         levels = 1 if p.hierarchy == "weighted" else len(order)
         z = z0
         success = True
@@ -216,21 +228,30 @@ class IpoptReference:
             t0 = time.perf_counter()
             out = solver(x0=z, p=par, lbx=lbz, ubx=ubz, lbg=lbg, ubg=ubg)
             times.append((time.perf_counter() - t0) * 1e3)
-            success &= bool(solver.stats()["success"])
+            stats = solver.stats()
+            success &= bool(stats["success"])
+            evals.append(1e3 * sum(v for k, v in stats.items() if k.startswith("t_wall_nlp_")))
             z = np.asarray(out["x"]).ravel()
             costs.append(float(out["f"]))
-            if compare is not None:
-                zc = self._with_min_slacks(compare, ns, rows_fn, par)
-                compared.append(float(cost_fn(zc, par)))
+            objectives.append(float(cost_fn(z, par)[1]))
+            if compare:
+                zc, violation = self._with_min_slacks(compare[min(level, len(compare) - 1)], ns, rows_fn, par)
+                full, objective = cost_fn(zc, par)
+                compared.append(float(full))
+                compared_obj.append(float(objective))
+                violations.append(violation)
             e_all = np.asarray(errs(z, par)).ravel().reshape(len(order), N, 6)
             estars.append((np.abs(e_all[level]) + p.lex_tolerance).T)
         n_x = 18 * (N + 1)
         X = z[:n_x].reshape(N + 1, 18)
         U = z[n_x:n_x + 9 * N].reshape(N, 9)
-        return ReferenceResult(X[:, :9], X[:, 9:], U, tuple(costs), tuple(times), success, tuple(compared))
+        return ReferenceResult(X[:, :9], X[:, 9:], U, tuple(costs), tuple(times), success, tuple(compared),
+                               tuple(evals), tuple(objectives), tuple(compared_obj), tuple(violations))
 
     def _with_min_slacks(self, traj: tuple[np.ndarray, np.ndarray, np.ndarray], ns: int, rows_fn: ca.Function,
-                         par: np.ndarray) -> np.ndarray:
+                         par: np.ndarray) -> tuple[np.ndarray, float]:
+        """The trajectory as an NLP point with the smallest slacks its collision rows need, and the
+        largest of those (the trajectory's violation of the exact rows)."""
         q, v, a = traj
         N = self.params.N
         z = np.concatenate([np.column_stack([q, v]).ravel(), a.ravel(), np.zeros(ns * (N - 1))])
@@ -241,7 +262,8 @@ class IpoptReference:
             for g in range(ns):
                 slack[:, g] = need[:, self.groups == g].max(axis=1)
             z[-ns * (N - 1):] = slack.ravel()
-        return z
+            return z, float(need.max())
+        return z, 0.0
 
     def _bounds(self, x0: np.ndarray, ns: int) -> tuple[np.ndarray, np.ndarray]:
         p, N, lim = self.params, self.params.N, self.robot.limits

@@ -27,6 +27,7 @@ class LoopLog:
 def run(world: SimWorld, controller: HTMPC, refs: References | Callable[[float], References], seconds: float,
         use_edf: bool = True) -> LoopLog:
     """Drive the world for `seconds`; the EDF is the simulator's exact one around the robot."""
+    controller.enforce_timeout = False  # lockstep: simulated time waits for the solver
     sim = SimRobot(world, cameras=())
     log = LoopLog()
     plan = None

@@ -6,7 +6,7 @@ import pytest
 from core.htmpc import HTMPC
 from core.params import HTMPCParams
 from core.types import BaseReference, EEReference, References
-from tests.core.htmpc.conftest import ready_state
+from tests.core.htmpc.conftest import lockstep, ready_state
 
 # The EE goal lies 2.2 m ahead while the base is asked to stay at the origin: they conflict
 # (the UR10 reaches about 1.3 m), so whichever task comes first wins.
@@ -16,7 +16,7 @@ EE = EEReference(position=np.array([[2.2, 0.0, 0.9]]))
 
 def converged_errors(robot, params: HTMPCParams, order: tuple[str, ...]) -> tuple[float, float, HTMPC]:
     """Repeated SQP iterations at the same state: the linearised optimum of each level."""
-    c = HTMPC(robot, params)
+    c = lockstep(HTMPC(robot, params))
     refs = References(order=order, base=BASE if "base" in order else None, ee=EE if "ee" in order else None,
                       switched=True)
     c.solve(ready_state(), refs, None)
@@ -47,7 +47,7 @@ def test_level_two_improves_without_breaking_level_one(robot):
     _, base_only_ee_first, _ = converged_errors(robot, params, ("ee",))
     ee_alone, _, _ = converged_errors(robot, params, ("ee",))
     ee, base, _ = converged_errors(robot, params, ("ee", "base"))
-    c_free = HTMPC(robot, params)
+    c_free = lockstep(HTMPC(robot, params))
     refs = References(order=("ee",), ee=EE, switched=True)
     c_free.solve(ready_state(), refs, None)
     free_base = float(np.sum(c_free.last_step.q[1:, :2] ** 2))  # base error when nobody cares about it

@@ -13,6 +13,7 @@ from core.sim.scene import Box, Scene
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
 from core.types import BaseReference, LocalEDF, Plan, PlanStatus, References, RobotState
+from tests.core.htmpc.conftest import lockstep
 
 DRIVE = References(order=("base", "ee"), base=BaseReference(np.array([[4.0, 0.0]]), np.zeros(1)))
 
@@ -40,7 +41,7 @@ def assert_brakes(robot, plan, state) -> None:
 
 def test_broken_map_makes_the_qp_fail_and_the_robot_brake(robot):
     broken = LocalEDF(origin=np.array([-2.0, -2.0, 0.0]), voxel=0.1, values=np.full((41, 41, 15), np.nan), cutoff=1.8)
-    c = HTMPC(robot)
+    c = lockstep(HTMPC(robot))
     state = moving_state(robot)
     plan = c.solve(state, DRIVE, broken)
     assert plan.status == PlanStatus.FALLBACK and "braking" in plan.message
@@ -49,7 +50,7 @@ def test_broken_map_makes_the_qp_fail_and_the_robot_brake(robot):
 
 
 def test_nan_state_stops(robot):
-    c = HTMPC(robot)
+    c = lockstep(HTMPC(robot))
     q = READY_Q.copy()
     q[4] = np.nan
     plan = c.solve(RobotState(2.0, q, np.full(9, np.nan)), DRIVE, None)
@@ -71,7 +72,7 @@ def test_solver_failures_in_closed_loop_stop_the_robot(robot):
     world = SimWorld(robot, scene=Scene((Box("b", (5.0, 2.0, 0.3)),)))
     world.set_robot(READY_Q)
     sim = SimRobot(world, cameras=())
-    c = HTMPC(robot)
+    c = lockstep(HTMPC(robot))
     plan = None
     speeds = []
     for k in range(600):
@@ -131,7 +132,7 @@ def test_qp_failure_in_closed_loop_brakes_along_the_previous_plan(robot):
     world = SimWorld(robot, scene=Scene())
     world.set_robot(READY_Q)
     sim = SimRobot(world, cameras=())
-    c = HTMPC(robot)
+    c = lockstep(HTMPC(robot))
     plan, plans, commands, base_xy = None, [], [], []
     for k in range(500):
         state = sim.observe().state
