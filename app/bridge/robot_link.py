@@ -4,6 +4,10 @@ The WebSocket handler (uvicorn's event loop) puts accepted states, frames and ac
 threads (through `BridgeRobot`) take observations out and send commands, which the handler's outbox
 delivers. Only validated data gets here: the handler rejects malformed messages and counts them with
 `reject`. Times for freshness and round trips are this process's `time.monotonic()`.
+
+Robot time (`t` of states, frames and commands) is the driver's clock, except that when a driver
+reconnects with its clock restarted (a restarted sim driver begins at 0) the link adds an offset, so
+the runtime's robot time never goes backwards; commands go out in the driver's own clock.
 """
 
 from __future__ import annotations
@@ -14,7 +18,7 @@ import threading
 import time
 from collections import Counter, OrderedDict, deque
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -75,6 +79,8 @@ class RobotLink:
         self._odometry: Odometry | None = None
         self._state_at = -math.inf
         self._connection_t = -math.inf
+        self.clock_offset = 0.0
+        """Studio robot time minus driver time (non-zero after a driver reconnected with its clock restarted)."""
         self._frames: deque[DepthFrame] = deque()
         self._frame_buffer = frame_buffer
         self._frame_times: deque[float] = deque(maxlen=256)
@@ -113,15 +119,25 @@ class RobotLink:
 
     # --- incoming ----------------------------------------------------------------------------------
 
+    def _shift_clock(self, t: float) -> None:
+        """On a connection's first state: if the driver's clock restarted behind the studio's, shift it
+        so the runtime's time continues from where it was (its control loop needs time to increase)."""
+        if self._connection_t == -math.inf and self._state is not None and t + self.clock_offset < self._state.t:
+            self.clock_offset = self._state.t - t
+            log.info("driver clock restarted at %.3f s: the studio's robot time continues from %.3f s", t,
+                     self._state.t)
+
     def accept_state(self, msg: StateMessage) -> None:
         """Store a validated state; refuses time going backwards within one connection."""
         with self._lock:
             if msg.t < self._connection_t:
                 raise MessageRejectedError("invalid_state", f"t went backwards: {msg.t} after {self._connection_t}")
+            self._shift_clock(msg.t)
             self._connection_t = msg.t
-            self._state = RobotState(msg.t, np.array(msg.q, dtype=float), np.array(msg.v, dtype=float))
+            t = msg.t + self.clock_offset
+            self._state = RobotState(t, np.array(msg.q, dtype=float), np.array(msg.v, dtype=float))
             odo = msg.odometry
-            self._odometry = None if odo is None else Odometry(msg.t, np.array(odo.pose), np.array(odo.twist))
+            self._odometry = None if odo is None else Odometry(t, np.array(odo.pose), np.array(odo.twist))
             self._state_at = time.monotonic()
             self.counts["states"] += 1
 
@@ -131,7 +147,7 @@ class RobotLink:
             if len(self._frames) >= self._frame_buffer:
                 self._frames.popleft()
                 self.counts["frames_dropped"] += 1
-            self._frames.append(frame)
+            self._frames.append(replace(frame, t=frame.t + self.clock_offset))
             self._frame_times.append(time.monotonic())
             self.counts["frames"] += 1
 
@@ -161,7 +177,7 @@ class RobotLink:
         with self._lock:
             self._seq += 1
             seq, sender = self._seq, self._sender
-            msg = Command(seq=seq, t=t, qdot=[float(x) for x in qdot], reason=reason)
+            msg = Command(seq=seq, t=t - self.clock_offset, qdot=[float(x) for x in qdot], reason=reason)
             now = time.monotonic()
             if sender is not None:
                 self._pending[seq] = now

@@ -189,3 +189,26 @@ def bridge_runtime(bridge: BridgeServer):
     bridge.attach(runtime)
     yield runtime
     runtime.shutdown()
+
+
+class StateStreamer:
+    """Streams zero states at 100 Hz on a raw link from a thread, as a driver would (keeps the state fresh)."""
+
+    def __init__(self, ws: ClientConnection, t0: float = 1.0) -> None:
+        self.ws, self.t = ws, t0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def _run(self) -> None:
+        while not self._stop.wait(0.01):
+            self.t += 0.01
+            send_state(self.ws, self.t)
+
+    def __enter__(self) -> StateStreamer:
+        send_state(self.ws, self.t)
+        self._thread.start()
+        return self
+
+    def __exit__(self, *_) -> None:
+        self._stop.set()
+        self._thread.join(timeout=2.0)

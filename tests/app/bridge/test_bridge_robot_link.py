@@ -8,12 +8,12 @@ import json
 import httpx
 import numpy as np
 import pytest
-from websockets.sync.client import ClientConnection
+from websockets.sync.client import ClientConnection, connect
 
 from app.bridge.depth_framing import encode_depth_frame
 from app.bridge.server import BridgeServer
 from core.types import DepthFrame
-from tests.app.bridge.conftest import ZERO_STATE, send_state, wait_until
+from tests.app.bridge.conftest import ZERO_STATE, StateStreamer, auth, send_state, wait_until
 
 
 def _frame(t: float, depth: np.ndarray | None = None) -> DepthFrame:
@@ -44,19 +44,20 @@ def test_state_and_frames_reach_the_robot_backend(bridge: BridgeServer, raw_driv
     assert len(obs.frames) == 1 and obs.frames[0].camera == "hand" and np.all(obs.frames[0].depth == 1.5)
     assert bridge.robot.observe().frames == ()
     health = _health(bridge)
-    assert health["driver_connected"] and not health["stale"] and health["counters"]["states"] == 1
+    assert health["driver_connected"] and health["driver"].startswith("127.0.0.1:")
+    assert health["counters"]["states"] == 1 and health["counters"]["frames"] == 1
 
 
 def test_commands_carry_seq_and_acks_measure_the_round_trip(bridge: BridgeServer,
                                                             raw_driver: ClientConnection) -> None:
-    send_state(raw_driver, 1.0)
-    assert wait_until(lambda: bridge.link.state is not None)
     qdot = np.linspace(-0.1, 0.1, 9)
-    bridge.robot.command(qdot, 1.0)
-    command = _next(raw_driver, "command")
+    with StateStreamer(raw_driver):
+        assert wait_until(lambda: bridge.link.state is not None)
+        bridge.robot.command(qdot, 1.0)
+        command = _next(raw_driver, "command")
+        raw_driver.send(json.dumps({"type": "ack", "seq": command["seq"], "t": 1.01}))
+        assert wait_until(lambda: _health(bridge)["counters"]["acks"] == 1)
     assert command["reason"] == "runtime" and command["t"] == 1.0 and np.allclose(command["qdot"], qdot)
-    raw_driver.send(json.dumps({"type": "ack", "seq": command["seq"], "t": 1.01}))
-    assert wait_until(lambda: _health(bridge)["counters"]["acks"] == 1)
     assert _health(bridge)["command_rtt_median_ms"] > 0.0
 
 
@@ -145,3 +146,19 @@ def test_the_link_survives_rejections(bridge: BridgeServer, raw_driver: ClientCo
     rejected = _health(bridge)["counters"]["rejected"]
     assert rejected == {"bad_json": 50, "invalid_frame": 50}
     assert np.allclose(bridge.robot.observe().state.q, 0.1)
+
+
+def test_a_driver_reconnecting_with_its_clock_restarted_keeps_robot_time_increasing(
+        bridge: BridgeServer, raw_driver: ClientConnection) -> None:
+    send_state(raw_driver, 7.0)
+    assert wait_until(lambda: bridge.link.state is not None)
+    raw_driver.close()
+    assert wait_until(lambda: not bridge.link.connected)
+    with connect(bridge.robot_url, additional_headers=auth(bridge.token)) as again:
+        _next(again, "welcome")
+        send_state(again, 0.5)
+        send_state(again, 0.6)
+        assert wait_until(lambda: bridge.link.counts["states"] == 3)
+        assert bridge.robot.observe().state.t == pytest.approx(7.1)
+        bridge.robot.command(np.zeros(9), 7.1)
+        assert _next(again, "command")["t"] == pytest.approx(0.6)
