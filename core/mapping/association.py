@@ -17,7 +17,7 @@ other objects than its own (touching objects seen as one segment) is split off b
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -92,15 +92,3 @@ def assign(C: np.ndarray, gate_m: float) -> Assignment:
     obj_done = {i for _, i in pairs}
     return Assignment(tuple(pairs), tuple(costs), tuple(j for j in range(n_seg) if j not in seg_done),
                       tuple(i for i in range(n_obj) if i not in obj_done))
-
-
-def best_objects(C: np.ndarray, segments: Sequence[int], gate_m: float) -> dict[int, int]:
-    """For each listed segment, the object of lowest cost if below `gate_m` (for merging leftovers)."""
-    out: dict[int, int] = {}
-    for j in segments:
-        if C.shape[1] == 0:
-            break
-        i = int(np.argmin(C[j]))
-        if C[j, i] < gate_m:
-            out[j] = i
-    return out

@@ -96,6 +96,21 @@ def mark_points(grid: EDFGrid, occupied: np.ndarray, points: np.ndarray) -> None
     occupied[idx[:, 0], idx[:, 1], idx[:, 2]] = True
 
 
+def mark_columns(grid: EDFGrid, occupied: np.ndarray, points: np.ndarray) -> None:
+    """Set the node nearest to each point (N×3) and every node below it down to the floor (z = 0):
+    the solid under a surface seen from above or the side, for objects that rest on the floor."""
+    if len(points) == 0:
+        return
+    idx = np.rint((points - grid.origin) / grid.voxel).astype(int)
+    ok = np.all((idx[:, :2] >= 0) & (idx[:, :2] < grid.shape[:2]), axis=1) & (idx[:, 2] >= 0)
+    idx = idx[ok]
+    top = np.full(grid.shape[:2], -1)
+    np.maximum.at(top, (idx[:, 0], idx[:, 1]), np.minimum(idx[:, 2], grid.shape[2] - 1))
+    floor = grid.window[2].start  # the node at z = 0
+    k = np.arange(grid.shape[2])
+    occupied |= (k[None, None, :] >= floor) & (k[None, None, :] <= top[:, :, None])
+
+
 def depth_inside(occupied: np.ndarray) -> np.ndarray:
     """EDT of the occupied mask (distance in voxels from each occupied node to the nearest free one).
 

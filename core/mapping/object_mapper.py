@@ -5,14 +5,20 @@ Per depth frame:
 1. points: unproject (every `pixel_stride`-th pixel, range cut-off), drop the floor and the robot
    (`scene_points.py`);
 2. segmentation: 5 cm voxels, 26-connected clusters of at least `min_segment_voxels` (`segmentation.py`);
-3. association: cost = truncated mean distance of a segment's (sampled) voxels to the object, i.e. to
-   its submap surface M_i or its fitted box's faces, whichever is nearer; Hungarian with a gate; a
-   second segment lying on a matched object (an occluder split it) joins it (`association.py`);
-4. registration: when a fifth of a matched segment lies off the object, point-to-plane ICP moves the
-   object (a box pushed 20–50 cm keeps its id at its new pose; farther moves are a new object and the
-   old one goes by step 5) (`registration.py`);
-5. consistency: a matched object is updated by Delta = mean M_i at the observed points within its box
-   grown by tau (new surface revealed elsewhere is no change), its submap grows, and every third
+3. association: from the distances of a segment's (sampled) voxels to an object, i.e. to its submap
+   surface M_i or, for a box-like object, its fitted box's faces, whichever is nearer: cost = the
+   smaller of their truncated mean and the cap times the fraction they leave unexplained (a segment
+   continuing a known surface is that object); Hungarian with a gate. The voxels of a segment go to
+   the objects whose surfaces explain them, nearest first (touching objects seen as one segment, or
+   one object split by an occluder), the unexplained rest to the segment's match, or to a new object;
+   an object that repeats part of a larger one's surface is merged into it (`association.py`);
+4. registration: when a fifth of a matched segment lies off a box-like object of pushable size,
+   point-to-plane ICP moves the object (a box pushed 20–50 cm keeps its id at its new pose; farther
+   moves are a new object and the old one goes by step 5) (`registration.py`); walls are never
+   registered (ICP slides a wall along itself onto its newly seen continuation);
+5. consistency: a matched object is updated by Delta = mean M_i at the observed points within the
+   object grown by tau (its box, or its footprint's columns if it is not box-like, `footprint.py`:
+   new surface revealed elsewhere is no change), its submap grows, and every third
    observation its voxels seen through are counted, those seen through three times running carved;
    an unmatched object whose expected-visible surface was seen through is a forced outlier
    (`visibility.py`, `consistency.py`); unseen or occluded objects keep their belief; an object with
@@ -48,14 +54,14 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from core.mapping import association, consistency
-from core.mapping.local_edf import EDFGrid, local_edf, mark_boxes
+from core.mapping.local_edf import EDFGrid, local_edf, mark_boxes, mark_columns
 from core.mapping.registration import align
 from core.mapping.scene_points import ScenePoints, latest_time
 from core.mapping.segmentation import Segment, segment, voxelise
@@ -80,6 +86,53 @@ class Observed:
     distances: np.ndarray
 
 
+@dataclass
+class Association:
+    """One frame's association: per object the point sets it was seen by (with the sample distances when
+    a whole segment went to it, already computed for its cost), the segments left for new objects, and
+    (keep, gone) pairs of objects to merge."""
+
+    shares: dict[int, list[tuple[np.ndarray, np.ndarray | None, np.ndarray | None]]] = field(default_factory=dict)
+    objects: dict[int, TrackedObject] = field(default_factory=dict)
+    leftovers: list[Segment] = field(default_factory=list)
+    merges: list[tuple[TrackedObject, TrackedObject]] = field(default_factory=list)
+
+    def add(self, obj: TrackedObject, points: np.ndarray, sample: np.ndarray | None = None,
+            distances: np.ndarray | None = None) -> None:
+        self.objects[obj.id] = obj
+        self.shares.setdefault(obj.id, []).append((points, sample, distances))
+
+    def gone(self) -> set[int]:
+        """Ids of the objects merged into others."""
+        return {g.id for _, g in self.merges}
+
+    def observed(self, n_sample: int, cap_m: float) -> list[Observed]:
+        """What each surviving object was seen by; shares of merged objects go to the object that took them."""
+        into = {g.id: k for k, g in self.merges}
+        for gone_id in list(into):
+            keep = into[gone_id]
+            while keep.id in into:
+                keep = into[keep.id]
+            into[gone_id] = keep
+        shares: dict[int, list[tuple[np.ndarray, np.ndarray | None, np.ndarray | None]]] = {}
+        owners: dict[int, TrackedObject] = {}
+        for oid, parts in self.shares.items():
+            obj = into.get(oid, self.objects[oid])
+            owners[obj.id] = obj
+            shares.setdefault(obj.id, []).extend(parts if obj.id == oid else [(pts, None, None) for pts, _, _ in parts])
+        out = []
+        for oid, parts in shares.items():
+            obj = owners[oid]
+            if len(parts) == 1 and parts[0][1] is not None:
+                points, sample, distances = parts[0]
+            else:
+                points = np.concatenate([pts for pts, _, _ in parts])
+                sample = points[::max(1, -(-len(points) // n_sample))]
+                distances = obj.distance(sample, cap_m)
+            out.append(Observed(obj, points, sample, distances))
+        return out
+
+
 EDF_PAD_M = 0.5
 """The EDT runs on the window grown by this, so objects just outside still shape the field near its edge."""
 
@@ -93,6 +146,9 @@ class ObjectMapper:
         self.scene_points = ScenePoints(robot, self.params)
         self.objects: dict[int, TrackedObject] = {}
         self.removed_ids: list[int] = []
+        """Ids of the objects taken out of the map: changed (POCD) or merged into another object."""
+        self.merged_ids: list[int] = []
+        """The part of `removed_ids` merged into another object (a duplicate of part of its surface)."""
         self.timings_ms: dict[str, float] = dict.fromkeys(TIMING_KEYS, 0.0)
         self.frames_integrated = 0
         self.last_matched = 0
@@ -118,12 +174,17 @@ class ObjectMapper:
         return ObjectMapSnapshot(t=self._t, objects=objects, removed_ids=tuple(self.removed_ids))
 
     def local_edf(self, centre_xy: np.ndarray) -> LocalEDF:
-        """Signed EDF (9a–9b) of the live objects' boxes in the window around `centre_xy`."""
+        """Signed EDF (9a–9b) in the window around `centre_xy`: box-like objects are their solid boxes, the
+        others their surface voxels with the columns below them (`footprint.py`)."""
         t0 = time.perf_counter()
         p = self.params
         grid = EDFGrid.around(np.asarray(centre_xy, dtype=float), p.edf_window_m, p.edf_voxel_m, EDF_PAD_M)
         occupied = grid.empty()
-        mark_boxes(grid, occupied, ((o.pose, o.extent) for o in self.objects.values()))
+        boxes = [o for o in self.objects.values() if o.box_like]
+        mark_boxes(grid, occupied, ((o.pose, o.extent) for o in boxes))
+        others = [o.world_points for o in self.objects.values() if not o.box_like]
+        if others:
+            mark_columns(grid, occupied, np.concatenate(others))
         edf = local_edf(grid, occupied, p.theta_cutoff_m)
         self.timings_ms["edf"] = (time.perf_counter() - t0) * 1e3
         return edf
@@ -142,7 +203,11 @@ class ObjectMapper:
             segments = segment(voxelise(points, p.voxel_m), p.min_segment_voxels)
         live = list(self.objects.values())
         with _timed(timings, "association"):
-            matches, leftovers = self._associate(segments, live)
+            found = self._associate(segments, live)
+            matches = found.observed(p.cost_sample_points, p.association_cap_m)
+            self._forget(found.gone(), "merged into another object")
+            self.merged_ids.extend(found.gone())
+            live = [o for o in live if o.id in self.objects]
         with _timed(timings, "registration"):
             for seen in matches:
                 self._register(seen)
@@ -155,44 +220,86 @@ class ObjectMapper:
                 if obj.id not in matched:
                     self._update_unmatched(obj, view)
             self._remove_changed()
-            self._create_all(leftovers)
+            self._create_all(found.leftovers)
         self.frames_integrated += 1
         return matched
 
     # --- association and registration ------------------------------------------------------------
 
-    def _associate(self, segments: list[Segment], live: list[TrackedObject]) -> tuple[list[Observed], list[Segment]]:
-        """Matched objects with what was observed of them, and the segments left for new objects."""
+    def _associate(self, segments: list[Segment], live: list[TrackedObject]) -> Association:
+        """Who saw what: the points of each segment go to the objects whose surface explains them
+        (nearest first), what no surface explains to the segment's Hungarian match, or becomes a new
+        object; objects found to repeat part of another's surface are merged into it."""
         p = self.params
         distances: dict[tuple[int, int], np.ndarray] = {}
         samples = [seg.sample(p.cost_sample_points) for seg in segments]
 
         def cost(j: int, i: int) -> float:
             distances[j, i] = live[i].distance(samples[j], p.association_cap_m)
-            return association.truncated_mean_distance(distances[j, i], p.association_cap_m)
+            return association.segment_cost(distances[j, i], p.association_cap_m, p.explain_m)
 
         seg_bounds = np.array([[s.lower, s.upper] for s in segments]).reshape(-1, 2, 3)
         obj_bounds = np.array([o.bounds() for o in live]).reshape(-1, 2, 3)
         candidates = association.overlaps(seg_bounds[:, 0], seg_bounds[:, 1], obj_bounds[:, 0], obj_bounds[:, 1],
                                           p.association_gate_m)
         C = association.cost_matrix(candidates, cost)
-        result = association.assign(C, p.association_gate_m)
-        parts: dict[int, list[int]] = {i: [j] for j, i in result.pairs}
-        merges = association.best_objects(C, result.unmatched_segments, p.merge_gate_m)
-        for j, i in merges.items():
-            parts.setdefault(i, []).append(j)
-        observed = [Observed(live[i], np.concatenate([segments[j].points for j in js]),
-                             np.concatenate([samples[j] for j in js]),
-                             np.concatenate([distances[j, i] for j in js])) for i, js in parts.items()]
-        leftovers = [segments[j] for j in result.unmatched_segments if j not in merges]
-        return observed, leftovers
+        owner = dict(association.assign(C, p.association_gate_m).pairs)
+        out = Association()
+        for j, seg in enumerate(segments):
+            explainers = [int(i) for i in np.nonzero(candidates[j])[0]
+                          if association.explained_fraction(distances[j, i], p.explain_m) >= p.split_fraction]
+            primary = owner.get(j)
+            if not [i for i in explainers if i != primary]:
+                if primary is None:
+                    out.leftovers.append(seg)
+                else:
+                    out.add(live[primary], seg.points, samples[j], distances[j, primary])
+                continue
+            self._split(seg, [live[i] for i in explainers], None if primary is None else live[primary], out)
+        for keep, gone in out.merges:
+            keep.absorb(gone)
+        return out
+
+    def _split(self, seg: Segment, explainers: list[TrackedObject], primary: TrackedObject | None,
+               out: Association) -> None:
+        """Share one segment among the objects whose surfaces explain parts of it (touching objects)."""
+        p = self.params
+        dist = np.stack([o.distance(seg.points, p.association_cap_m) for o in explainers], axis=1)
+        who = association.nearest_owner(dist, p.explain_m)
+        out.merges.extend(self._duplicates(dist, explainers))
+        for k, obj in enumerate(explainers):
+            if np.any(who == k):
+                out.add(obj, seg.points[who == k])
+        rest = who < 0
+        if not np.any(rest):
+            return
+        if primary is not None:
+            out.add(primary, seg.points[rest])
+        elif rest.sum() >= p.min_segment_voxels:
+            out.leftovers.append(Segment(seg.points[rest], seg.counts[rest]))
+        else:
+            out.add(explainers[int(np.argmax(np.sum(dist < p.explain_m, axis=0)))], seg.points[rest])
+
+    def _duplicates(self, dist: np.ndarray, objects: list[TrackedObject]) -> list[tuple[TrackedObject, TrackedObject]]:
+        """(keep, gone) pairs among objects explaining one segment: the smaller surface goes when most of the
+        points it explains are explained by the other as well (it repeats part of the other's surface)."""
+        p = self.params
+        near = dist < p.explain_m
+        pairs = []
+        for a in range(len(objects)):
+            for b in range(a + 1, len(objects)):
+                small, big = (a, b) if len(objects[a].submap) <= len(objects[b].submap) else (b, a)
+                n_small = int(near[:, small].sum())
+                if n_small and np.sum(near[:, small] & near[:, big]) >= p.duplicate_fraction * n_small:
+                    pairs.append((objects[big], objects[small]))
+        return pairs
 
     def _register(self, seen: Observed) -> None:
         """Move the object when its observation sits off its surface and ICP explains that by a motion."""
         p = self.params
-        if np.mean(seen.distances > p.registration_trigger_m) < 0.2:
-            return
         obj = seen.obj
+        if np.mean(seen.distances > p.registration_trigger_m) < 0.2 or not self._movable(obj):
+            return
         result = align(seen.sample, obj.world_points, p.icp_max_correspondence_m, p.icp_max_iterations,
                        normal_radius_m=2.5 * p.voxel_m)
         moved = seen.sample @ result.T[:3, :3].T + result.T[:3, 3]
@@ -205,13 +312,18 @@ class ObjectMapper:
             log.debug("object %d moved by %s (cost %.3f → %.3f m)", obj.id, np.round(-result.T[:3, 3], 3),
                       before, after)
 
+    def _movable(self, obj: TrackedObject) -> bool:
+        """Only box-like objects of a pushable size are registered: ICP on a wall slides it along itself
+        to cover the wall's newly seen continuation."""
+        return obj.box_like and float(np.max(obj.extent[:2])) <= self.params.registration_max_extent_m
+
     # --- consistency ------------------------------------------------------------------------------
 
     def _update_matched(self, seen: Observed, view: FrameView) -> None:
         """POCD update by Delta, then fuse the points and carve what was seen through."""
         p = self.params
         obj = seen.obj
-        within = obj.inside_box(seen.sample, p.tau_m)
+        within = obj.covers(seen.sample, p.tau_m)
         if np.any(within):
             delta = float(np.mean(seen.distances[within]))
             post = consistency.update(obj.posterior, delta, p.semantic_static_s, p.semantic_weight_k, p.tau_m,
@@ -249,16 +361,21 @@ class ObjectMapper:
         return p.forced_outlier_weight * counts.through_fraction * min(1.0, counts.through / p.clear_view_voxels)
 
     def _remove_changed(self) -> None:
+        """Remove the objects with E[v] < theta_stat after more than `min_observations` updates (and any
+        whose whole surface was carved away)."""
         p = self.params
-        for obj in list(self.objects.values()):
-            gone = len(obj.submap) == 0
-            changed = obj.posterior.consistency < p.theta_stat and obj.updates > p.min_observations
-            if gone or changed:
-                obj.status = ObjectStatus.REMOVED
-                del self.objects[obj.id]
-                self.removed_ids.append(obj.id)
-                log.info("object %d removed (E[v] = %.2f after %d updates)", obj.id, obj.posterior.consistency,
-                         obj.updates)
+        changed = [o.id for o in self.objects.values()
+                   if len(o.submap) == 0 or (o.posterior.consistency < p.theta_stat and o.updates > p.min_observations)]
+        self._forget(changed, "changed")
+
+    def _forget(self, ids: Iterable[int], why: str) -> None:
+        """Take objects out of the map; their ids are published as removed."""
+        for object_id in ids:
+            obj = self.objects.pop(object_id)
+            obj.status = ObjectStatus.REMOVED
+            self.removed_ids.append(object_id)
+            log.info("object %d removed, %s (E[v] = %.2f after %d updates)", object_id, why,
+                     obj.posterior.consistency, obj.updates)
 
     def _create_all(self, leftovers: list[Segment]) -> None:
         """New objects from the leftover segments, largest first; a segment lying on the box of an object
@@ -277,7 +394,8 @@ class ObjectMapper:
     def _create(self, points: np.ndarray) -> TrackedObject:
         p = self.params
         prior = Posterior(mu=p.mu0_m, sigma=p.sigma0_m, alpha=p.alpha0, beta=p.beta0)
-        obj = TrackedObject(self._next_id, points, p.voxel_m, prior, floor_snap_m=p.floor_snap_m)
+        obj = TrackedObject(self._next_id, points, p.voxel_m, prior, floor_snap_m=p.floor_snap_m,
+                            box_fill_max_m=p.box_fill_max_m)
         self.objects[obj.id] = obj
         self._next_id += 1
         return obj
