@@ -1,38 +1,161 @@
-"""Command line: `python -m app` serves the studio on the embedded MuJoCo simulation."""
+"""Command line of the studio.
+
+    python -m app [serve] [options]     serve the studio (default)
+    python -m app run --headless ...    run a sequence in lockstep and write a report (JSON + plots)
+    python -m app replay FILE           replay a recorded run in the studio
+"""
 
 from __future__ import annotations
 
 import argparse
+import datetime as dt
 import logging
 import signal
+import sys
 import threading
 from pathlib import Path
 
-from app.runtime import DEFAULT_SCENE, Runtime, RuntimeConfig
+from app.runtime import DEFAULT_SCENE, DEFAULT_SEQUENCE, MAP_KINDS, ROOT
+
+
+def _common(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--scene", type=Path, default=None,
+                        help="scene YAML (default: the sequence's scene, else core/sim/scenes/default.yaml)")
+    parser.add_argument("--sequence", type=Path, default=DEFAULT_SEQUENCE, help="task sequence YAML")
+    parser.add_argument("--map", dest="map_kind", choices=MAP_KINDS, default="object", help="map the controller uses")
+    parser.add_argument("--constraint", choices=("cbf", "edf"), default="cbf", help="collision constraint kind")
+    parser.add_argument("--log-level", default="INFO")
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python -m app", description="Perceptive HTMPC Studio")
-    parser.add_argument("--scene", type=Path, default=DEFAULT_SCENE, help="scene YAML (boxes and robot start)")
-    parser.add_argument("--host", default="127.0.0.1", help="address to serve on (default: local only)")
-    parser.add_argument("--port", type=int, default=8080)
-    parser.add_argument("--log-level", default="INFO")
+    sub = parser.add_subparsers(dest="command")
+    serve = sub.add_parser("serve", help="serve the studio (default)")
+    _common(serve)
+    serve.add_argument("--host", default="127.0.0.1", help="address to serve on (default: this machine only)")
+    serve.add_argument("--port", type=int, default=8080)
+    serve.add_argument("--speed", type=float, default=1.0, help="sim seconds per wall second")
+    serve.add_argument("--record", type=Path, default=None, help="record snapshots to this .jsonl.gz file")
+    serve.add_argument("--backend", choices=("sim", "bridge"), default="sim",
+                       help="sim: embedded MuJoCo; bridge: a robot driver connected to the hardware bridge")
+    serve.add_argument("--bridge-port", type=int, default=8090, help="port of the hardware bridge (--backend bridge)")
+    run = sub.add_parser("run", help="run a sequence in lockstep and write a report")
+    _common(run)
+    run.add_argument("--headless", action="store_true", required=True, help="no browser: lockstep, as fast as possible")
+    run.add_argument("--max-duration", type=float, default=300.0, help="sim seconds at most")
+    run.add_argument("--out", type=Path, default=None, help="report folder (default runs/<time>)")
+    run.add_argument("--perception-delay", type=float, default=0.0)
+    run.add_argument("--actuation-delay", type=float, default=0.0)
+    replay = sub.add_parser("replay", help="replay a recorded run in the studio")
+    replay.add_argument("file", type=Path)
+    replay.add_argument("--host", default="127.0.0.1")
+    replay.add_argument("--port", type=int, default=8080)
+    replay.add_argument("--log-level", default="INFO")
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    logging.basicConfig(level=args.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    from app.ui.studio import Studio
+def _scene_for(args) -> Path:
+    if args.scene is not None:
+        return args.scene
+    from tasks.sequence_file import load_sequence
 
-    runtime = Runtime(RuntimeConfig(scene=args.scene))
-    studio = Studio(runtime, host=args.host, port=args.port)
-    runtime.start()
-    print(f"Perceptive HTMPC Studio: open {studio.url} in a browser (Ctrl+C to quit)", flush=True)
+    seq = load_sequence(args.sequence)
+    if seq.scene:
+        return (args.sequence.parent / seq.scene).resolve()
+    return DEFAULT_SCENE
+
+
+def _wait_for_signal() -> None:
     done = threading.Event()
     signal.signal(signal.SIGINT, lambda *_: done.set())
     signal.signal(signal.SIGTERM, lambda *_: done.set())
     done.wait()
-    runtime.stop()
+
+
+def serve(args) -> int:
+    from app.runtime import Runtime, RuntimeConfig
+    from app.ui.studio import Studio
+
+    config = RuntimeConfig(scene=_scene_for(args), sequence=args.sequence, map_kind=args.map_kind,
+                           constraint=args.constraint, speed=args.speed)
+    backend, bridge = None, None
+    if args.backend == "bridge":
+        from app.bridge.server import BridgeServer
+
+        bridge = BridgeServer(port=args.bridge_port)
+        bridge.start()
+        backend = bridge.robot
+        print(f"hardware bridge on http://127.0.0.1:{args.bridge_port} (token: {bridge.token})", flush=True)
+    runtime = Runtime(config, backend=backend)
+    if bridge is not None:
+        bridge.attach(runtime)
+    studio = Studio(runtime, host=args.host, port=args.port)
+    recorder = None
+    if args.record:
+        from app.recording import Recorder
+
+        recorder = Recorder(args.record)
+        runtime.subscribe(recorder)
+    runtime.start_live()
+    print(f"Perceptive HTMPC Studio: open {studio.url} in a browser (Ctrl+C to quit)", flush=True)
+    _wait_for_signal()
+    runtime.shutdown()
+    studio.close()
+    if recorder is not None:
+        recorder.close()
+    if bridge is not None:
+        bridge.stop()
+    return 0
+
+
+def run_headless(args) -> int:
+    from app.report import write_report
+    from app.runtime import Runtime, RuntimeConfig
+
+    config = RuntimeConfig(scene=_scene_for(args), sequence=args.sequence, map_kind=args.map_kind,
+                           constraint=args.constraint, perception_delay_s=args.perception_delay,
+                           actuation_delay_s=args.actuation_delay)
+    runtime = Runtime(config)
+    from rich.progress import Progress
+
+    with Progress() as progress:
+        task = progress.add_task("lockstep run", total=args.max_duration)
+        runtime.run_lockstep(args.max_duration, on_control=lambda rt: progress.update(task, completed=rt.time))
+    out = args.out or ROOT / "runs" / dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+    meta = {"title": runtime.sequence.name, "sequence": str(args.sequence), "scene": str(config.scene),
+            "map": args.map_kind, "constraint": args.constraint, "outcome": runtime.run_state.value,
+            "status": runtime.status_line(), "subtasks_done": sum(p.outcome.value == "done"
+                                                                   for p in runtime.sequencer.progress)}
+    summary = write_report(out, runtime.log, runtime.world.obstacles(), meta)
+    print(f"{runtime.run_state.value}: {runtime.status_line()}")
+    for key, value in summary.items():
+        print(f"  {key}: {value:.3f}" if isinstance(value, float) else f"  {key}: {value}")
+    print(f"report written to {out}")
+    return 0 if runtime.run_state.value == "finished" else 1
+
+
+def replay(args) -> int:
+    from app.replay import ReplaySource
+    from app.ui.studio import Studio
+
+    source = ReplaySource(args.file)
+    studio = Studio(source, host=args.host, port=args.port)
+    source.start_live()
+    print(f"Replay of {args.file}: open {studio.url} (Start plays, Step advances, Reset rewinds)", flush=True)
+    _wait_for_signal()
+    source.shutdown()
     studio.close()
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] not in ("serve", "run", "replay", "-h", "--help"):
+        argv = ["serve", *argv]
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=args.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    try:
+        return {"serve": serve, "run": run_headless, "replay": replay}[args.command](args)
+    except (FileNotFoundError, ValueError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2

@@ -1,11 +1,39 @@
-"""What the runtime publishes to its subscribers (the UI, the bridge, recorders): one frozen value."""
+"""What the runtime publishes to its subscribers (the UI, the bridge, recorders): one frozen value.
+
+Subscribers read snapshots only; they never reach into the controller or the map (DESIGN.md).
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import StrEnum
+
+import numpy as np
 
 from core.sim.scene import Box
-from core.types import RobotState
+from core.types import ObjectMapSnapshot, Plan, RobotState
+from tasks.sequencer import SubtaskProgress
+
+
+class RunState(StrEnum):
+    """What the runtime is doing with the active sequence."""
+
+    IDLE = "idle"
+    RUNNING = "running"
+    PAUSED = "paused"
+    FINISHED = "finished"
+    FAILED = "failed"
+    ESTOP = "emergency_stop"
+
+
+@dataclass(frozen=True)
+class EDFSlice:
+    """A horizontal slice of the local EDF at height `z_m`: values[i, j] at origin + voxel·(i, j)."""
+
+    origin: np.ndarray
+    voxel: float
+    z_m: float
+    values: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -15,7 +43,25 @@ class Snapshot:
     seq: int
     wall_time: float
     state: RobotState
-    boxes: tuple[Box, ...] = ()
-    running: bool = False
+    run_state: RunState = RunState.IDLE
     status: str = ""
+    boxes: tuple[Box, ...] = ()
+    """Ground-truth boxes (simulation only)."""
+    plan: Plan | None = None
+    base_path: np.ndarray | None = None
+    """The sequencer's planned base path (P×2)."""
+    object_map: ObjectMapSnapshot | None = None
+    map_points: np.ndarray | None = None
+    """Occupied points of the map (decimated), for the voxel view."""
+    edf_slice: EDFSlice | None = None
+    progress: tuple[SubtaskProgress, ...] = ()
+    active_index: int = -1
+    sequence_version: int = 0
+    min_distance_m: float = float("nan")
+    collisions: int = 0
     timings_ms: dict[str, float] = field(default_factory=dict)
+    map_kind: str = ""
+    constraint: str = ""
+    speed: float = 1.0
+    messages: tuple[str, ...] = ()
+    """Errors and warnings raised since the previous snapshot (shown as notifications)."""

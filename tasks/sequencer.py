@@ -116,6 +116,8 @@ class Sequencer:
         if self.finished:
             return f"sequence finished ({len(self.progress)} subtasks)"
         p = self.progress[self.index]
+        if p.outcome == Outcome.PENDING:
+            return f"ready: {len(self.progress)} subtasks, first {p.name}"
         return (f"{self.index + 1}/{len(self.progress)} {p.name}: {p.position_error_m:.2f} m, "
                 f"{p.orientation_error_deg:.0f}° after {p.elapsed_s:.1f} s")
 

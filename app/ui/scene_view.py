@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import viser
 
@@ -14,8 +15,9 @@ BOX_RGB = (194, 153, 107)
 class SceneView:
     """Box nodes under `/scene/boxes/<id>`, kept in step with the world's boxes."""
 
-    def __init__(self, server: viser.ViserServer) -> None:
+    def __init__(self, server: viser.ViserServer, on_click: Callable[[str], None] | None = None) -> None:
         self.server = server
+        self.on_click = on_click
         self._nodes: dict[str, tuple[Box, viser.BoxHandle]] = {}
 
     def update(self, boxes: tuple[Box, ...]) -> None:
@@ -34,6 +36,8 @@ class SceneView:
                 if old is not None:
                     old[1].remove()
                 handle = self.server.scene.add_box(f"/scene/boxes/{box_id}", color=BOX_RGB, dimensions=box.size)
+                if self.on_click is not None:
+                    handle.on_click(lambda _, box_id=box_id: self.on_click(box_id))
             handle.position = box.position
             handle.wxyz = (math.cos(box.yaw / 2), 0.0, 0.0, math.sin(box.yaw / 2))
             self._nodes[box_id] = (box, handle)

@@ -1,31 +1,62 @@
-"""The studio page: a viser server that draws what the runtime publishes."""
+"""The studio page: one viser server drawing what the runtime publishes, with panels for run
+control, authoring, scene edits and monitoring. Every connected browser sees the same state."""
 
 from __future__ import annotations
 
 import logging
+import threading
 
 import viser
 
 from app.runtime import Runtime
 from app.snapshot import Snapshot
+from app.ui.authoring_panel import AuthoringPanel
+from app.ui.map_view import MapView
+from app.ui.monitor_panel import MonitorPanel
+from app.ui.notify import notify_all
+from app.ui.plan_view import PlanView
 from app.ui.robot_view import RobotView
+from app.ui.run_panel import RunPanel
+from app.ui.scene_panel import ScenePanel
 from app.ui.scene_view import SceneView
 
 log = logging.getLogger(__name__)
 
+LAYERS = {"objects": "Mapped objects", "voxels": "Map voxels", "edf": "EDF slice", "spheres": "Collision spheres",
+          "frusta": "Camera frusta"}
+
 
 class Studio:
-    """Binds one viser server to one runtime; every connected browser sees the same state."""
+    """Binds one viser server to one runtime."""
 
     def __init__(self, runtime: Runtime, host: str = "127.0.0.1", port: int = 8080) -> None:
         self.runtime = runtime
         self.server = viser.ViserServer(host=host, port=port, label="Perceptive HTMPC Studio")
+        self.server.gui.configure_theme(control_width="large", show_logo=False)
         self.server.scene.set_up_direction("+z")
-        self.server.scene.add_grid("/floor", width=14.0, height=14.0, cell_size=0.5, section_size=1.0,
+        self.server.scene.add_grid("/floor", width=16.0, height=16.0, cell_size=0.5, section_size=1.0,
                                    position=(0.0, 0.0, 0.001))
+        self.server.initial_camera.position = (-2.5, -4.5, 4.0)
+        self.server.initial_camera.look_at = (1.5, 0.0, 0.3)
+        self._draw_lock = threading.Lock()
         self.robot_view = RobotView(self.server, runtime.robot)
-        self.scene_view = SceneView(self.server)
-        self.status = self.server.gui.add_markdown("**starting**")
+        self.map_view = MapView(self.server, runtime.robot)
+        self.plan_view = PlanView(self.server)
+        self.monitor = MonitorPanel(self.server)
+        self.run_panel = RunPanel(self.server, runtime)
+        tabs = self.server.gui.add_tab_group()
+        with tabs.add_tab("Sequence"):
+            self.authoring = AuthoringPanel(self.server, runtime)
+        with tabs.add_tab("Scene"):
+            self.scene_panel = ScenePanel(self.server, runtime)
+        with tabs.add_tab("Monitor"):
+            self.monitor.build_plots()
+        with tabs.add_tab("View"):
+            for key, label in LAYERS.items():
+                box = self.server.gui.add_checkbox(label, self.map_view.show[key])
+                box.on_update(lambda e, key=key: self.map_view.set_layer(key, e.target.value))
+        self.scene_view = SceneView(self.server, on_click=self.scene_panel.select_box)
+        self.draws = 0
         self._unsubscribe = runtime.subscribe(self.draw)
         self.draw(runtime.snapshot())
 
@@ -34,11 +65,26 @@ class Studio:
         return f"http://{self.server.get_host()}:{self.server.get_port()}"
 
     def draw(self, snap: Snapshot) -> None:
-        """Apply one snapshot to the scene, atomically for every client."""
-        with self.server.atomic():
-            self.robot_view.update(snap.state.q)
-            self.scene_view.update(snap.boxes)
-        self.status.content = f"t = {snap.state.t:6.1f} s · {len(snap.boxes)} boxes"
+        """Apply one snapshot to every view and panel; a drawing error is reported, not fatal."""
+        if not self._draw_lock.acquire(blocking=False):
+            return  # the previous snapshot is still being sent: skip this one
+        try:
+            with self.server.atomic():
+                self.robot_view.update(snap.state.q)
+                self.scene_view.update(snap.boxes)
+                self.map_view.update(snap)
+                self.plan_view.update(snap)
+            self.monitor.update(snap)
+            self.run_panel.update(snap)
+            self.scene_panel.update(snap)
+            self.authoring.update(snap)
+            for message in snap.messages:
+                notify_all(self.server, "Runtime", message)
+            self.draws += 1
+        except Exception:
+            log.exception("drawing a snapshot failed")
+        finally:
+            self._draw_lock.release()
 
     def close(self) -> None:
         self._unsubscribe()

@@ -26,12 +26,11 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-@pytest.fixture
-def studio_process() -> Iterator[tuple[subprocess.Popen, str]]:
-    """`python -m app` (what README command 1 runs) on a free port; yields (process, url)."""
+def start_studio(*args: str) -> tuple[subprocess.Popen, str]:
+    """Start `python -m app ARGS --port <free>` and wait for the URL it prints."""
     port = free_port()
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    proc = subprocess.Popen([sys.executable, "-m", "app", "--port", str(port)], cwd=ROOT, env=env,
+    proc = subprocess.Popen([sys.executable, "-m", "app", *args, "--port", str(port)], cwd=ROOT, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     url, lines, deadline = None, [], time.time() + 90
     while time.time() < deadline and url is None:
@@ -44,12 +43,23 @@ def studio_process() -> Iterator[tuple[subprocess.Popen, str]]:
     if url is None:
         proc.kill()
         pytest.fail("studio did not start:\n" + "".join(lines))
-    yield proc, url
+    return proc, url
+
+
+def stop(proc: subprocess.Popen) -> None:
     proc.terminate()
     try:
         proc.wait(timeout=10)
     except subprocess.TimeoutExpired:
         proc.kill()
+
+
+@pytest.fixture
+def studio_process() -> Iterator[tuple[subprocess.Popen, str]]:
+    """`python -m app` exactly as README command 1 runs it; yields (process, url)."""
+    proc, url = start_studio()
+    yield proc, url
+    stop(proc)
 
 
 @pytest.fixture

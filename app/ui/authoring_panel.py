@@ -1,0 +1,231 @@
+"""Authoring the task sequence in the browser: a target gizmo, add base goals, waypoints and EE
+targets, list, reorder, delete, edit tolerance/timeout/dwell/priority, undo/redo, YAML download
+and upload. Every change goes to the runtime as a new authored sequence."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import viser
+
+from app.runtime import Runtime
+from app.snapshot import Snapshot
+from app.ui.authoring import (
+    PRIORITY_CHOICES,
+    SequenceHistory,
+    add_base_goal,
+    add_base_waypoint,
+    add_ee_target,
+    delete_subtask,
+    move_subtask,
+    replace_subtask,
+)
+from app.ui.notify import guarded, notify_all
+from tasks.schema import BaseSubtask, TaskSequence
+from tasks.sequence_file import parse_sequence, sequence_to_yaml
+
+NONE = "(none)"
+
+
+def _rpy_deg(wxyz: np.ndarray) -> tuple[float, float, float]:
+    R = viser.transforms.SO3(np.asarray(wxyz)).as_matrix()
+    pitch = math.asin(-float(np.clip(R[2, 0], -1.0, 1.0)))
+    roll = math.atan2(R[2, 1], R[2, 2])
+    yaw = math.atan2(R[1, 0], R[0, 0])
+    return tuple(round(math.degrees(a), 2) for a in (roll, pitch, yaw))
+
+
+def _label(i: int, sub) -> str:
+    return f"{i + 1}. {sub.kind}: {sub.name}"
+
+
+class AuthoringPanel:
+    """The 'Sequence' folder, the target gizmo `/authoring/target` and markers of every goal."""
+
+    def __init__(self, server: viser.ViserServer, runtime: Runtime) -> None:
+        self.server, self.runtime = server, runtime
+        self.history = SequenceHistory(runtime.sequence)
+        self._version = runtime.sequence_version
+        self._syncing = False
+        self._markers: list = []
+        g = guarded
+        self.target_pos = server.gui.add_vector3("Target (m)", (0.0, 0.0, 0.9), step=0.05)
+        self.target_rpy = server.gui.add_vector3("Target rpy (deg)", (0.0, 0.0, 0.0), step=5.0)
+        self.add_buttons = server.gui.add_button_group("Add at target", ("Base goal", "Waypoint", "EE target"))
+        self.use_yaw = server.gui.add_checkbox("Base goal with heading", True)
+        self.select = server.gui.add_dropdown("Subtask", (NONE,), initial_value=NONE)
+        self.name = server.gui.add_text("Name", "")
+        self.pos_tol = server.gui.add_number("Position tolerance (m)", 0.1, min=0.001, step=0.01)
+        self.ori_tol = server.gui.add_number("Orientation tolerance (deg)", 10.0, min=0.1, step=1.0)
+        self.timeout = server.gui.add_number("Timeout (s)", 120.0, min=0.1, step=1.0)
+        self.dwell = server.gui.add_number("Dwell (s)", 0.0, min=0.0, step=0.5)
+        self.priority = server.gui.add_dropdown("Priority", tuple(PRIORITY_CHOICES), initial_value="default")
+        self.edit_buttons = server.gui.add_button_group("Edit", ("Up", "Down", "Delete"))
+        self.history_buttons = server.gui.add_button_group("History", ("Undo", "Redo"))
+        self.download = server.gui.add_button("Download sequence (YAML)")
+        self.upload = server.gui.add_upload_button("Load sequence (YAML)", mime_type="*/*")
+        q = runtime.state.q
+        self.target = server.scene.add_transform_controls(
+            "/authoring/target", scale=0.5, position=(q[0] + 1.5 * math.cos(q[2]), q[1] + 1.5 * math.sin(q[2]), 0.9))
+        self.target.on_update(lambda _: self._target_to_fields())
+        self.target_pos.on_update(lambda _: self._fields_to_target())
+        self.target_rpy.on_update(lambda _: self._fields_to_target())
+        self._target_to_fields()
+        self.add_buttons.on_click(g(server, "add subtask")(lambda e: self._add(e.target.value)))
+        self.select.on_update(lambda _: self._show_selected())
+        for field in (self.name, self.pos_tol, self.ori_tol, self.timeout, self.dwell, self.priority):
+            field.on_update(g(server, "edit subtask")(lambda _: self._edit_fields()))
+        self.edit_buttons.on_click(g(server, "edit sequence")(lambda e: self._edit(e.target.value)))
+        self.history_buttons.on_click(lambda e: self._history(e.target.value))
+        self.download.on_click(g(server, "download")(lambda e: self._download(e.client)))
+        self.upload.on_upload(g(server, "load sequence")(lambda _: self._upload()))
+        self._refresh()
+
+    # --- helpers -----------------------------------------------------------------------------------
+
+    @property
+    def index(self) -> int | None:
+        v = self.select.value
+        return None if v == NONE else int(v.split(".", 1)[0]) - 1
+
+    def _commit(self, seq: TaskSequence, select: int | None = None) -> None:
+        self.history.push(seq)
+        self.runtime.set_sequence(seq)
+        self._version = self.runtime.sequence_version
+        self._refresh(select)
+
+    def _refresh(self, select: int | None = None) -> None:
+        seq = self.history.current
+        labels = tuple(_label(i, s) for i, s in enumerate(seq.subtasks))
+        keep = self.index if select is None else select
+        self._syncing = True
+        try:
+            self.select.options = (NONE, *labels)
+            self.select.value = labels[keep] if keep is not None and 0 <= keep < len(labels) else NONE
+        finally:
+            self._syncing = False
+        self._show_selected()
+        self._draw_markers(seq)
+
+    def _show_selected(self) -> None:
+        i = self.index
+        if i is None or i >= len(self.history.current.subtasks):
+            return
+        sub = self.history.current.subtasks[i]
+        self._syncing = True
+        try:
+            self.name.value = sub.name
+            self.pos_tol.value = sub.tolerance.position_m
+            self.ori_tol.value = sub.tolerance.orientation_deg
+            self.timeout.value = sub.timeout_s
+            self.dwell.value = sub.dwell_s
+            self.priority.value = next((k for k, v in PRIORITY_CHOICES.items() if v == sub.priority), "default")
+        finally:
+            self._syncing = False
+
+    def _draw_markers(self, seq: TaskSequence) -> None:
+        for handle in self._markers:
+            handle.remove()
+        self._markers = []
+        for i, sub in enumerate(seq.subtasks):
+            for k, pose in enumerate(sub.path()):
+                last = k == len(sub.path()) - 1
+                if isinstance(sub, BaseSubtask):
+                    pos = (pose.x, pose.y, 0.02)
+                    yaw = pose.yaw_rad or 0.0
+                    wxyz = (math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2))
+                    color = (40, 110, 240)
+                else:
+                    pos = pose.position
+                    R = pose.rotation()
+                    wxyz = (1.0, 0.0, 0.0, 0.0) if R is None else viser.transforms.SO3.from_matrix(R).wxyz
+                    color = (245, 140, 20)
+                name = f"/authoring/goals/{i}_{k}"
+                self._markers.append(self.server.scene.add_frame(name, axes_length=0.25 if last else 0.12,
+                                                                 axes_radius=0.012, position=pos, wxyz=wxyz,
+                                                                 origin_color=color))
+                if last:
+                    self._markers.append(self.server.scene.add_label(f"{name}_label", f"{i + 1} {sub.kind}",
+                                                                     position=np.asarray(pos) + [0, 0, 0.2]))
+
+    def _target_to_fields(self) -> None:
+        if self._syncing:
+            return
+        self._syncing = True
+        try:
+            self.target_pos.value = tuple(round(float(v), 3) for v in self.target.position)
+            self.target_rpy.value = _rpy_deg(self.target.wxyz)
+        finally:
+            self._syncing = False
+
+    def _fields_to_target(self) -> None:
+        if self._syncing:
+            return
+        self._syncing = True
+        try:
+            self.target.position = tuple(self.target_pos.value)
+            r, p, y = np.radians(self.target_rpy.value)
+            self.target.wxyz = viser.transforms.SO3.from_rpy_radians(r, p, y).wxyz
+        finally:
+            self._syncing = False
+
+    # --- actions ---------------------------------------------------------------------------------
+
+    def _add(self, what: str) -> None:
+        p = np.asarray(self.target.position, float)
+        seq = self.history.current
+        if what == "Base goal":
+            yaw = _rpy_deg(self.target.wxyz)[2] if self.use_yaw.value else None
+            self._commit(add_base_goal(seq, float(p[0]), float(p[1]), yaw), select=len(seq.subtasks))
+        elif what == "Waypoint":
+            i = self.index
+            if i is None:
+                raise ValueError("select the base subtask the waypoint belongs to")
+            self._commit(add_base_waypoint(seq, i, float(p[0]), float(p[1])), select=i)
+        else:
+            self._commit(add_ee_target(seq, tuple(float(v) for v in p), _rpy_deg(self.target.wxyz)),
+                         select=len(seq.subtasks))
+
+    def _edit_fields(self) -> None:
+        i = self.index
+        if self._syncing or i is None:
+            return
+        seq = replace_subtask(self.history.current, i, name=self.name.value,
+                              tolerance={"position_m": self.pos_tol.value, "orientation_deg": self.ori_tol.value},
+                              timeout_s=self.timeout.value, dwell_s=self.dwell.value,
+                              priority=PRIORITY_CHOICES[self.priority.value])
+        self._commit(seq, select=i)
+
+    def _edit(self, action: str) -> None:
+        i = self.index
+        if i is None:
+            raise ValueError("select a subtask first")
+        seq = self.history.current
+        if action == "Delete":
+            self._commit(delete_subtask(seq, i), select=min(i, len(seq.subtasks) - 2))
+        else:
+            delta = -1 if action == "Up" else 1
+            self._commit(move_subtask(seq, i, delta), select=max(0, min(len(seq.subtasks) - 1, i + delta)))
+
+    def _history(self, action: str) -> None:
+        seq = self.history.undo() if action == "Undo" else self.history.redo()
+        self.runtime.set_sequence(seq)
+        self._version = self.runtime.sequence_version
+        self._refresh()
+
+    def _download(self, client: viser.ClientHandle | None) -> None:
+        (client or self.server).send_file_download("sequence.yaml", sequence_to_yaml(self.history.current).encode())
+
+    def _upload(self) -> None:
+        upload = self.upload.value
+        seq = parse_sequence(upload.content.decode("utf-8", errors="replace"), source=upload.name)
+        self._commit(seq, select=0 if seq.subtasks else None)
+        notify_all(self.server, "Sequence loaded", f"{upload.name}: {len(seq.subtasks)} subtasks", color="green")
+
+    def update(self, snap: Snapshot) -> None:
+        """Follow sequences set elsewhere (the bridge, a reset)."""
+        if snap.sequence_version != self._version:
+            self._version = snap.sequence_version
+            self.history.push(self.runtime.sequence)
+            self._refresh()

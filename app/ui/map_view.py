@@ -1,0 +1,123 @@
+"""Draw what the robot believes: mapped objects coloured by E[v] with labels, removed objects,
+the map's occupied points, an EDF slice, collision spheres, camera frusta and depth point clouds."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import trimesh
+import viser
+
+from app.snapshot import Snapshot
+from app.ui.colors import consistency_rgb, distance_rgb
+from app.ui.robot_view import wxyz
+from core.robot.model import RobotModel
+from core.types import ObjectStatus
+
+
+class MapView:
+    """Scene nodes under `/map`; toggles decide which layers are sent."""
+
+    def __init__(self, server: viser.ViserServer, robot: RobotModel) -> None:
+        self.server = server
+        self.robot = robot
+        self.show = {"objects": True, "voxels": False, "edf": False, "spheres": False, "frusta": True,
+                     "clouds": False}
+        self._objects: dict[int, tuple[tuple, viser.BoxHandle, viser.LabelHandle]] = {}
+        self._layers: dict[str, object] = {}
+        sphere = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
+        self._sphere_mesh = (np.asarray(sphere.vertices, np.float32), np.asarray(sphere.faces, np.uint32))
+
+    def set_layer(self, name: str, visible: bool) -> None:
+        self.show[name] = visible
+        if not visible:
+            if name == "objects":
+                self._clear_objects()
+            handle = self._layers.pop(name, None)
+            if handle is not None:
+                handle.remove()
+
+    def _clear_objects(self) -> None:
+        for _, box, label in self._objects.values():
+            box.remove()
+            label.remove()
+        self._objects.clear()
+
+    def update(self, snap: Snapshot) -> None:
+        if self.show["objects"]:
+            self._draw_objects(snap)
+        if self.show["voxels"]:
+            self._draw_points(snap)
+        if self.show["edf"]:
+            self._draw_edf(snap)
+        if self.show["spheres"]:
+            self._draw_spheres(snap)
+        if self.show["frusta"]:
+            self._draw_frusta(snap)
+
+    def _draw_objects(self, snap: Snapshot) -> None:
+        objects = snap.object_map.objects if snap.object_map is not None else ()
+        seen = set()
+        for obj in objects:
+            removed = obj.status == ObjectStatus.REMOVED
+            key = (tuple(np.round(obj.pose[:3, 3], 3)), tuple(np.round(obj.extent, 3)), round(obj.consistency, 2),
+                   removed)
+            seen.add(obj.id)
+            old = self._objects.get(obj.id)
+            if old is not None and old[0] == key:
+                continue
+            if old is not None:
+                old[1].remove()
+                old[2].remove()
+            color = (150, 150, 150) if removed else consistency_rgb(obj.consistency)
+            box = self.server.scene.add_box(f"/map/objects/{obj.id}", color=color,
+                                            dimensions=tuple(np.asarray(obj.extent) + 0.02), wireframe=True,
+                                            position=obj.pose[:3, 3], wxyz=wxyz(obj.pose[:3, :3]))
+            text = f"#{obj.id} E[v]={obj.consistency:.2f}" + (" removed" if removed else "")
+            label = self.server.scene.add_label(f"/map/labels/{obj.id}", text,
+                                                position=obj.pose[:3, 3] + [0, 0, obj.extent[2] / 2 + 0.15])
+            self._objects[obj.id] = (key, box, label)
+        for obj_id in [i for i in self._objects if i not in seen]:
+            _, box, label = self._objects.pop(obj_id)
+            box.remove()
+            label.remove()
+
+    def _draw_points(self, snap: Snapshot) -> None:
+        pts = snap.map_points if snap.map_points is not None and len(snap.map_points) else np.zeros((1, 3))
+        colors = np.tile(np.array([[90, 120, 220]], np.uint8), (len(pts), 1))
+        self._layers["voxels"] = self.server.scene.add_point_cloud("/map/voxels", pts.astype(np.float32), colors,
+                                                                   point_size=0.05, point_shape="square")
+
+    def _draw_edf(self, snap: Snapshot) -> None:
+        sl = snap.edf_slice
+        if sl is None:
+            return
+        nx, ny = sl.values.shape
+        gx, gy = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+        pts = np.column_stack([sl.origin[0] + sl.voxel * gx.ravel(), sl.origin[1] + sl.voxel * gy.ravel(),
+                               np.full(gx.size, sl.z_m)])
+        cutoff = float(np.nanmax(sl.values)) if sl.values.size else 1.0
+        self._layers["edf"] = self.server.scene.add_point_cloud(
+            "/map/edf_slice", pts.astype(np.float32), distance_rgb(sl.values.ravel(), cutoff),
+            point_size=0.8 * sl.voxel, point_shape="square")
+
+    def _draw_spheres(self, snap: Snapshot) -> None:
+        centres = self.robot.sphere_centres(snap.state.q)
+        v, f = self._sphere_mesh
+        n = len(centres)
+        self._layers["spheres"] = self.server.scene.add_batched_meshes_simple(
+            "/map/spheres", v, f, batched_wxyzs=np.tile([1.0, 0, 0, 0], (n, 1)), batched_positions=centres,
+            batched_scales=self.robot.sphere_radii, batched_colors=(80, 200, 255), batched_opacities=np.full(n, 0.35))
+
+    def _draw_frusta(self, snap: Snapshot) -> None:
+        for cam in self.robot.cameras:
+            T = self.robot.camera_pose(snap.state.q, cam.name)
+            name = f"frustum_{cam.name}"
+            handle = self._layers.get(name)
+            if handle is None:
+                handle = self.server.scene.add_camera_frustum(f"/map/{name}", fov=math.radians(58.0), aspect=4 / 3,
+                                                              scale=0.25, color=(30, 30, 30))
+                self._layers[name] = handle
+            handle.position = T[:3, 3]
+            handle.wxyz = wxyz(T[:3, :3])

@@ -1,0 +1,44 @@
+"""Run control: start, pause, step, stop, reset, speed, map and constraint kind, emergency stop."""
+
+from __future__ import annotations
+
+import viser
+
+from app.runtime import MAP_KINDS, Runtime
+from app.snapshot import RunState, Snapshot
+from app.ui.notify import guarded, notify_all
+
+
+class RunPanel:
+    """The 'Run' folder; the emergency stop is a red button and the Escape hotkey."""
+
+    def __init__(self, server: viser.ViserServer, runtime: Runtime) -> None:
+        self.server, self.runtime = server, runtime
+        with server.gui.add_folder("Run"):
+            self.estop = server.gui.add_button("EMERGENCY STOP (Esc)", color="red", icon=None,
+                                               hint="Zero velocity now; Start or Reset to go on")
+            self.buttons = server.gui.add_button_group("Control", ("Start", "Pause", "Step", "Stop", "Reset"))
+            self.speed = server.gui.add_slider("Speed (×)", min=0.1, max=4.0, step=0.1,
+                                               initial_value=runtime.config.speed)
+            self.map_kind = server.gui.add_dropdown("Map", MAP_KINDS, initial_value=runtime.config.map_kind)
+            self.constraint = server.gui.add_dropdown("Constraint", ("cbf", "edf"),
+                                                      initial_value=runtime.config.constraint)
+        command = server.gui.add_command("Emergency stop", description="Zero velocity now", hotkey="escape")
+        command.on_trigger(lambda _: self._estop())
+        self.estop.on_click(lambda _: self._estop())
+        self.buttons.on_click(guarded(server, "run control")(lambda e: self._control(e.target.value)))
+        self.speed.on_update(guarded(server, "speed")(lambda _: runtime.set_speed(self.speed.value)))
+        self.map_kind.on_update(guarded(server, "map kind")(lambda _: runtime.configure(map_kind=self.map_kind.value)))
+        self.constraint.on_update(
+            guarded(server, "constraint kind")(lambda _: runtime.configure(constraint=self.constraint.value)))
+
+    def _estop(self) -> None:
+        self.runtime.emergency_stop()
+        notify_all(self.server, "Emergency stop", "The robot was stopped. Start or Reset to go on.")
+
+    def _control(self, action: str) -> None:
+        {"Start": self.runtime.start, "Pause": self.runtime.pause, "Step": self.runtime.step,
+         "Stop": self.runtime.stop, "Reset": self.runtime.reset}[action]()
+
+    def update(self, snap: Snapshot) -> None:
+        self.estop.disabled = snap.run_state == RunState.ESTOP
