@@ -7,11 +7,15 @@ run (speed ratio and cost gap).
 Timings are wall-clock per `HTMPC.solve` call (everything: warm start, FK, linearisation, the QPs, the
 plan), including the first step after the task starts (several SQP iterations). The thread's CPU time
 is reported beside them: the other engineers' jobs share the 2 cores, and the gap between the two shows
-how much of a figure is waiting. The cost gap compares, level by level, our level-l QP solution with
-IPOPT's level-l optimum, both evaluated with the same nonlinear objective J_l + J_aux (exact FK and
-SO(3) log); per state the worse level counts. How far our plans violate IPOPT's exact-kinematics
-collision rows (the price of linearising them) is reported beside it, in the rows' units (m/s for the
-CBF at gamma = 1).
+how much of a figure is waiting.
+
+The cost gap compares the plan we hand out (our last level's QP solution after one real-time iteration)
+with IPOPT's converged last level, both evaluated with the same nonlinear objective J_L + J_aux (exact
+FK and SO(3) log). Level 1 is compared on its task cost J_1 alone, our level-1 QP solution against
+IPOPT's level-1 optimum: that is what (7c) hands on. (J_aux of our level-1 solution is not comparable:
+the Levenberg-Marquardt damping keeps the joints level 1 does not use where level 2 last put them.)
+How far our plans violate IPOPT's exact-kinematics collision rows (the price of linearising them) is
+reported beside it, in the rows' units (m/s for the CBF at gamma = 1).
 """
 
 from __future__ import annotations
@@ -65,8 +69,9 @@ def compare_with_ipopt(log: RunLog, reference: IpoptReference, controller: HTMPC
     log.ipopt_ms.append(sum(res.level_ms))
     log.ipopt_solver_ms.append(sum(res.level_ms) - sum(res.eval_ms))
     log.ours_at_ipopt_ms.append(ms)
-    log.gap_pct.append([100.0 * (o - r) / max(abs(r), 1e-9)
-                        for o, r in zip(res.compared_objectives, res.level_objectives, strict=True)])
+    last = 100.0 * (res.compared_objectives[-1] - res.level_objectives[-1]) / max(abs(res.level_objectives[-1]), 1e-9)
+    first = 100.0 * (res.compared_task_costs[0] - res.level_task_costs[0]) / max(abs(res.level_task_costs[0]), 1e-9)
+    log.gap_pct.append([first, last])
     log.violation.append(max(res.compared_violations))
 
 
@@ -123,7 +128,6 @@ def main(argv: list[str] | None = None) -> None:
                      "2 levels, N=10 (+ IPOPT)")
     n20 = replace(base, N=20, dt_s=0.15)
     l2n20 = closed_loop(robot, n20, 2, seconds, None, every, "2 levels, N=20")
-    worst_gap = [max(g) for g in l2.gap_pct]
     ours_at_ipopt = percentile(l2.ours_at_ipopt_ms, 50)
     figures = {
         "l1_n10_median_ms": percentile(l1.wall_ms, 50),
@@ -133,10 +137,10 @@ def main(argv: list[str] | None = None) -> None:
         "l2_n20_median_ms": percentile(l2n20.wall_ms, 50),
         "ipopt_l2_n10_median_ms": percentile(l2.ipopt_ms, 50),
         "speedup_vs_ipopt": percentile(l2.ipopt_ms, 50) / ours_at_ipopt,
-        "cost_gap_pct": percentile(worst_gap, 50),
-        "cost_gap_p90_pct": percentile(worst_gap, 90),
-        "cost_gap_level1_pct": percentile([g[0] for g in l2.gap_pct], 50),
-        "cost_gap_level2_pct": percentile([g[-1] for g in l2.gap_pct], 50),
+        "cost_gap_pct": percentile([g[1] for g in l2.gap_pct], 50),
+        "cost_gap_p90_pct": percentile([g[1] for g in l2.gap_pct], 90),
+        "level1_task_gap_pct": percentile([g[0] for g in l2.gap_pct], 50),
+        "level1_task_gap_p90_pct": percentile([g[0] for g in l2.gap_pct], 90),
         "collision_row_violation_p90": percentile(l2.violation, 90),
         "collision_row_violation_max": float(np.max(l2.violation)) if l2.violation else float("nan"),
         "speedup_vs_ipopt_solver_only": percentile(l2.ipopt_solver_ms, 50) / ours_at_ipopt,

@@ -39,6 +39,9 @@ log = logging.getLogger(__name__)
 PREBUILT_LEX_ROWS = (0, 2, 3, 6)
 """(7c) rows a level can carry: none (level 1), base xy or xy+yaw, EE position or pose (level 2)."""
 
+TRUST_COST_FLOOR = 1e-4
+"""Cost changes below this (relative to 1 + the cost) count as predicted well whatever their ratio."""
+
 MIN_TRUST_SCALE = 0.125
 """The yaw/arm trust region never shrinks below 1/8 of `trust_region_rad`, and it recovers by ×2 at
 every new control step, so a bad step cannot freeze the plan."""
@@ -250,23 +253,25 @@ class HTMPC:
         return trust
 
     def _adapt_trust(self, step: StepResult, order: list[str], refs: References) -> None:
-        """Shrink the trust region when the linear model over-promised, widen it when it was right.
-        Also evaluates the FK of the new iterate once, which the plan reuses for its EE path."""
+        """Shrink the trust region when the Gauss-Newton model mispredicted a task's cost change, widen it
+        when it predicted every task well. Each task is checked on its own: in a lexicographic step a
+        lower level's cost may rise as planned, and a period-2 oscillation at the stretched arm predicts
+        nearly no change of the summed cost while each level's cost jumps. Also evaluates the FK of the
+        new iterate once, which the plan reuses for its EE path."""
         kin_new = self.kinematics(step.q)
-        old = self._true_cost(step.q_bar, step.kin, order, refs)
-        new = self._true_cost(step.q, kin_new, order, refs)
-        predicted = 0.0
+        step.kin_new = kin_new
+        worst = 0.0
         for name in order:
             lin = step.lins[name]
+            old = 0.5 * float(np.sum(lin.weights * lin.e0[1:] ** 2))
+            new = self._true_cost(step.q, kin_new, [name], refs)
             e = lin.e0[1:] + np.einsum("kmj,kj->km", lin.J[1:], step.q[1:] - step.q_bar[1:])
-            predicted += 0.5 * float(np.sum(lin.weights * e**2))
-        step.kin_new = kin_new
-        if old - predicted <= 1e-9:
-            return
-        rho = (old - new) / (old - predicted)
-        if rho < 0.25:
+            predicted = 0.5 * float(np.sum(lin.weights * e**2))
+            scale = abs(old - predicted) + TRUST_COST_FLOOR * (1.0 + old)
+            worst = max(worst, abs(new - predicted) / scale)
+        if worst > 0.75:
             self.trust_scale = max(self.trust_scale * 0.5, MIN_TRUST_SCALE)
-        elif rho > 0.75:
+        elif worst < 0.25:
             self.trust_scale = min(self.trust_scale * 2.0, 1.0)
 
     def _fallback(self, state: RobotState, n_levels: int, reason: str,

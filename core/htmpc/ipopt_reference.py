@@ -52,6 +52,10 @@ class ReferenceResult:
     """J_l + J_aux of the compared level-l solutions."""
     compared_violations: tuple[float, ...] = ()
     """Largest violation of IPOPT's (exact-kinematics) collision rows by each compared solution."""
+    level_task_costs: tuple[float, ...] = ()
+    """J_l alone (Σ dt ½‖e_l‖²_Q) of IPOPT's level-l solution: what (7c) hands on to later levels."""
+    compared_task_costs: tuple[float, ...] = ()
+    """J_l alone of the compared level-l solutions."""
 
 
 class IpoptReference:
@@ -107,7 +111,7 @@ class IpoptReference:
             rot = ca.reshape(ref_R[:, k], 3, 3) if has_rot[name] else None
             return self._errors(name, X[:9, k], ref_p[:, k], rot)
 
-        cost = 0
+        cost, task = 0, 0
         g, lbg, ubg = [], [], []
         names = list(levels) if p.hierarchy == "weighted" else [levels[level]]
         for k in range(1, N + 1):
@@ -115,6 +119,7 @@ class IpoptReference:
             for name in names:
                 e = err(name, k)
                 w = W[name][: e.shape[0]]
+                task += dt * 0.5 * ca.sum1(w * e**2)
                 cost += dt * 0.5 * ca.sum1(w * e**2)
                 edot = ca.jtimes(e, X[:9, k], v)
                 cost += dt * 0.5 * p.Q_edot * ca.sum1(w * edot**2)
@@ -163,7 +168,7 @@ class IpoptReference:
         opts = {"ipopt": {"print_level": 0, "tol": self.tol, "max_iter": 300, "warm_start_init_point": "yes",
                           "mu_init": 1e-3, "sb": "yes"}, "print_time": False}
         solver = ca.nlpsol("reference", "ipopt", nlp, opts)
-        cost_fn = ca.Function("cost", [z, par], [cost, objective])
+        cost_fn = ca.Function("cost", [z, par], [cost, objective, task])
         rows = g[-(M * (N - 1)):] if with_edf else []
         rows_fn = ca.Function("collision_rows", [z, par], [ca.vertcat(*rows) if rows else ca.DM.zeros(0)])
         errs = ca.Function("errors", [z, par], [ca.vertcat(*[ca.vec(ca.horzcat(*[
@@ -215,6 +220,7 @@ class IpoptReference:
         lbz, ubz = self._bounds(x0, ns)
         estars: list[np.ndarray] = []
         costs, times, evals, objectives, compared_obj, violations = [], [], [], [], [], []
+        tasks, compared_task = [], []
         levels = 1 if p.hierarchy == "weighted" else len(order)
         z = z0
         success = True
@@ -233,12 +239,15 @@ class IpoptReference:
             evals.append(1e3 * sum(v for k, v in stats.items() if k.startswith("t_wall_nlp_")))
             z = np.asarray(out["x"]).ravel()
             costs.append(float(out["f"]))
-            objectives.append(float(cost_fn(z, par)[1]))
+            _, objective, task = cost_fn(z, par)
+            objectives.append(float(objective))
+            tasks.append(float(task))
             if compare:
                 zc, violation = self._with_min_slacks(compare[min(level, len(compare) - 1)], ns, rows_fn, par)
-                full, objective = cost_fn(zc, par)
+                full, objective, task = cost_fn(zc, par)
                 compared.append(float(full))
                 compared_obj.append(float(objective))
+                compared_task.append(float(task))
                 violations.append(violation)
             e_all = np.asarray(errs(z, par)).ravel().reshape(len(order), N, 6)
             estars.append((np.abs(e_all[level]) + p.lex_tolerance).T)
@@ -246,7 +255,8 @@ class IpoptReference:
         X = z[:n_x].reshape(N + 1, 18)
         U = z[n_x:n_x + 9 * N].reshape(N, 9)
         return ReferenceResult(X[:, :9], X[:, 9:], U, tuple(costs), tuple(times), success, tuple(compared),
-                               tuple(evals), tuple(objectives), tuple(compared_obj), tuple(violations))
+                               tuple(evals), tuple(objectives), tuple(compared_obj), tuple(violations), tuple(tasks),
+                               tuple(compared_task))
 
     def _with_min_slacks(self, traj: tuple[np.ndarray, np.ndarray, np.ndarray], ns: int, rows_fn: ca.Function,
                          par: np.ndarray) -> tuple[np.ndarray, float]:

@@ -19,9 +19,6 @@ from core.htmpc.ocp_qp import NQ, QPLayout, StructuredQP
 from core.htmpc.tasks import Linearisation
 from core.params import HTMPCParams
 
-PROXIMAL = 1e-4
-"""A tiny ‖q − q̄‖² term keeps H positive definite where no task acts (e.g. arm joints in a base task)."""
-
 
 @dataclass(frozen=True)
 class LexBound:
@@ -62,9 +59,9 @@ def base_arrays(qp: StructuredQP, params: HTMPCParams, q_bar: np.ndarray, rows: 
     h = np.zeros(qp.H_sp.nnz())
     g = np.zeros(L.nv)
     eye = np.eye(NQ)
-    h[qp.H_qq] += PROXIMAL * eye
+    h[qp.H_qq] += params.sqp_damping * eye  # ½ λ ‖q − q̄‖²: Levenberg-Marquardt damping, also keeps H > 0
     for k in range(L.N + 1):
-        g[L.q(k)] -= PROXIMAL * q_bar[k]
+        g[L.q(k)] -= params.sqp_damping * q_bar[k]
     h[qp.H_vv[1:]] += dt * params.Q_x * eye
     h[qp.H_aa] += dt * params.Q_u
     h[qp.H_ss] += 2.0 * params.slack_quadratic

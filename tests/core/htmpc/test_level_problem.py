@@ -4,7 +4,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from core.htmpc.level_problem import PROXIMAL, LexBound, add_lex_rows, base_arrays, task_cost
+from core.htmpc.level_problem import LexBound, add_lex_rows, base_arrays, task_cost
 from core.htmpc.ocp_qp import QPLayout, StructuredQP
 from core.htmpc.tasks import Linearisation
 from core.params import HTMPCParams
@@ -31,12 +31,12 @@ def test_task_cost_and_aux_terms(qp):
     L = qp.layout
     k = 2
     x, vx, ax, s = L.q(k).start, L.v(k).start, L.a(k).start, L.s(k).start
-    assert H[x, x] == pytest.approx(0.3 * 2.0 + PROXIMAL)  # dt · w · J²
+    assert H[x, x] == pytest.approx(0.3 * 2.0 + p.sqp_damping)  # dt · w · J² + λ
     assert arrays.g[x] == pytest.approx(0.3 * 2.0 * (-1.0) * 1.0)  # dt · J w e0
     assert H[vx, vx] == pytest.approx(0.3 * (0.5 * 2.0 + 0.1))  # dt (Q_edot w J² + Q_x)
     assert H[ax, ax] == pytest.approx(0.3 * 0.2)  # dt Q_u
     assert H[s, s] == pytest.approx(2.0) and arrays.g[s] == pytest.approx(50.0)  # 50 s + 1 s²
-    assert H[L.q(0).start, L.q(0).start] == pytest.approx(PROXIMAL)  # node 0 carries no task cost
+    assert H[L.q(0).start, L.q(0).start] == pytest.approx(p.sqp_damping)  # node 0 carries no task cost
 
 
 def test_lexicographic_rows_7c(qp):
