@@ -163,3 +163,16 @@ def test_qp_failure_in_closed_loop_brakes_along_the_previous_plan(robot):
     seg = np.diff(path, axis=0)
     w = np.clip(np.einsum("ij,ij->i", stop - path[:-1], seg) / np.maximum(np.einsum("ij,ij->i", seg, seg), 1e-12), 0, 1)
     assert np.min(np.linalg.norm(path[:-1] + w[:, None] * seg - stop, axis=1)) < 0.05
+
+
+def test_nan_state_after_a_plan_stops_along_that_plan(robot):
+    c = lockstep(HTMPC(robot))
+    state = moving_state(robot)
+    good = c.solve(state, DRIVE, None)
+    assert good.status in (PlanStatus.OK, PlanStatus.SLACK)
+    q = np.full(9, np.nan)
+    plan = c.solve(RobotState(state.t + 0.1, q, q), DRIVE, None)
+    assert plan.status == PlanStatus.STOPPING and "previous plan" in plan.message
+    np.testing.assert_allclose(plan.v[0], good.velocity_at(state.t + 0.1))  # no jump in the command
+    assert np.all(plan.v[-1] == 0.0) and np.all(np.abs(plan.u) <= robot.limits.a_max)
+    assert_commands_safe(robot, plan)
