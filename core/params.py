@@ -166,6 +166,9 @@ class MappingParams:
     """An object is box-like (solid box in the EDF) when its box's footprint is everywhere within this of
     the seen surface (`core/mapping/footprint.py`); a box seen from two sides qualifies, walls around a
     corridor do not."""
+    hollow_min_through: int = 3
+    """A box-like object whose box interior (samples at `edf_voxel_m`, `explain_m` in from its faces) is seen
+    through at this many samples in one check is hollow: mapped by its surface from then on."""
     registration_max_extent_m: float = 1.6
     """Only box-like objects with a footprint no longer than this are registered (pushable things)."""
     merge_gate_m: float = 0.08

@@ -182,7 +182,7 @@ class ObjectMapper:
         occupied = grid.empty()
         boxes = [o for o in self.objects.values() if o.box_like]
         mark_boxes(grid, occupied, ((o.pose, o.extent) for o in boxes))
-        others = [o.world_points for o in self.objects.values() if not o.box_like]
+        others = [o.solid_world_points() for o in self.objects.values() if not o.box_like]
         if others:
             mark_columns(grid, occupied, np.concatenate(others))
         edf = local_edf(grid, occupied, p.theta_cutoff_m)
@@ -212,7 +212,8 @@ class ObjectMapper:
             for seen in matches:
                 self._register(seen)
         with _timed(timings, "consistency"):
-            view = FrameView.of(frame, p.visibility_margin_m, p.depth_noise_coeff_m, p.range_m, p.through_patch_px)
+            view = FrameView.of(frame, p.visibility_margin_m, p.depth_noise_coeff_m, p.range_m, p.through_patch_px,
+                                p.floor_height_m)
             matched = {seen.obj.id for seen in matches}
             for seen in matches:
                 self._update_matched(seen, view)
@@ -281,8 +282,10 @@ class ObjectMapper:
             out.add(explainers[int(np.argmax(np.sum(dist < p.explain_m, axis=0)))], seg.points[rest])
 
     def _duplicates(self, dist: np.ndarray, objects: list[TrackedObject]) -> list[tuple[TrackedObject, TrackedObject]]:
-        """(keep, gone) pairs among objects explaining one segment: the smaller surface goes when most of the
-        points it explains are explained by the other as well (it repeats part of the other's surface)."""
+        """(keep, gone) pairs among objects explaining one segment: the smaller object goes when it repeats
+        part of the larger one's surface, i.e. most of the segment points it explains are explained by the
+        other as well, and so is most of its own surface (a box pushed against another is not a duplicate:
+        its old surface lies elsewhere, and is carved away as it is seen through)."""
         p = self.params
         near = dist < p.explain_m
         pairs = []
@@ -290,7 +293,10 @@ class ObjectMapper:
             for b in range(a + 1, len(objects)):
                 small, big = (a, b) if len(objects[a].submap) <= len(objects[b].submap) else (b, a)
                 n_small = int(near[:, small].sum())
-                if n_small and np.sum(near[:, small] & near[:, big]) >= p.duplicate_fraction * n_small:
+                if not n_small or np.sum(near[:, small] & near[:, big]) < p.duplicate_fraction * n_small:
+                    continue
+                surface = objects[small].world_points
+                if np.mean(objects[big].distance(surface, p.association_cap_m) < p.explain_m) >= p.duplicate_fraction:
                     pairs.append((objects[big], objects[small]))
         return pairs
 
@@ -334,9 +340,22 @@ class ObjectMapper:
         carve_check = obj.observations % p.carve_check_every == 0
         if carve_check:
             obj.submap.mark_seen_through(view.classify(obj.world_points) == THROUGH)
+            self._check_hollow(obj, view)
         obj.integrate(seen.points)
         if carve_check:
             obj.carve(p.carve_after_misses)
+
+    def _check_hollow(self, obj: TrackedObject, view: FrameView) -> None:
+        """Free space seen inside a box-like object's box (an L of walls whose box spans the corridor
+        between them) makes it hollow: from then on it is its surface, not its box."""
+        p = self.params
+        if not obj.box_like:
+            return
+        inside = obj.interior(p.edf_voxel_m, p.explain_m)
+        if np.sum(view.classify(inside) == THROUGH) >= p.hollow_min_through:
+            obj.hollow = True
+            log.info("object %d: free space seen inside its box %s, mapped by its surface", obj.id,
+                     np.round(obj.extent, 2))
 
     def _update_unmatched(self, obj: TrackedObject, view: FrameView) -> None:
         """Forced outlier, weighted by the clear view of its place, if it should have been seen."""

@@ -58,6 +58,9 @@ class TrackedObject:
         self._footprint: Footprint | None = None
         self._box_like = True
         self._grown: dict[float, Footprint] = {}
+        self._interior: np.ndarray | None = None
+        self.hollow = False
+        """Free space was seen inside its fitted box: the box does not stand for the object (sticky)."""
         self.integrate(points_world)
 
     # --- frames -----------------------------------------------------------------------------------
@@ -70,6 +73,7 @@ class TrackedObject:
         """Apply a world-frame motion of the body (from registration)."""
         self.T_world_object = T_world_delta @ self.T_world_object
         self._changed()
+        self._interior = None
 
     # --- submap -----------------------------------------------------------------------------------
 
@@ -115,6 +119,16 @@ class TrackedObject:
 
     # --- box --------------------------------------------------------------------------------------
 
+    def _solid(self) -> np.ndarray:
+        """Mask of the well-supported submap voxels: at least a quarter of the median point count (the
+        rest are depth-noise outliers off the surface)."""
+        counts = self.submap.counts
+        return counts >= 0.25 * np.median(counts)
+
+    def solid_world_points(self) -> np.ndarray:
+        """The well-supported surface voxels (V×3) in the world."""
+        return self.world_points[self._solid()]
+
     @property
     def fit(self) -> BoxFit:
         """Upright box around the submap's well-supported voxels, in the object frame.
@@ -126,8 +140,7 @@ class TrackedObject:
         n = len(self.submap)
         if self._fit is None or abs(n - self._fit_voxels) > REFIT_CHANGE * max(self._fit_voxels, 1):
             self._fit_voxels = n
-            counts = self.submap.counts
-            solid = counts >= 0.25 * np.median(counts)
+            solid = self._solid()
             pts = self.submap.points[solid] if solid.sum() >= 4 else self.submap.points
             if self._yaw is None or n > (1.0 + REFIT_YAW_GROWTH) * self._yaw_voxels:
                 self._yaw, self._yaw_voxels = None, n
@@ -137,6 +150,7 @@ class TrackedObject:
             self._footprint = Footprint.of(pts, self.submap.voxel_m)
             self._box_like = self._footprint.box_gap(self._fit) <= self.box_fill_max_m
             self._grown = {}
+            self._interior = None
         return self._fit
 
     @property
@@ -144,7 +158,7 @@ class TrackedObject:
         """Does the fitted box stand for the object (every point of its footprint within `box_fill_max_m`
         of the seen surface)? If not, the object is its surface, columns filled down to the floor."""
         _ = self.fit
-        return self._box_like
+        return self._box_like and not self.hollow
 
     @property
     def footprint(self) -> Footprint:
@@ -152,6 +166,22 @@ class TrackedObject:
         _ = self.fit
         assert self._footprint is not None
         return self._footprint
+
+    def interior(self, step_m: float, inset_m: float) -> np.ndarray:
+        """World points on a `step_m` grid inside the fitted box, at least `inset_m` from its faces (empty
+        for a box thinner than that): where free space, if seen, shows the box is not the object."""
+        if self._interior is None:
+            fit = self.fit
+            half = fit.half - inset_m
+            if np.any(half <= 0.0):
+                self._interior = np.zeros((0, 3))
+            else:
+                axes = [np.linspace(-h, h, max(2, int(np.ceil(2 * h / step_m)) + 1)) for h in half]
+                grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+                local = grid @ fit.rotation.T + fit.centre
+                R, t = self.T_world_object[:3, :3], self.T_world_object[:3, 3]
+                self._interior = local @ R.T + t
+        return self._interior
 
     def covers(self, points_world: np.ndarray, grow_m: float) -> np.ndarray:
         """Mask of world points within the object grown by `grow_m`: its box if box-like, else its

@@ -22,6 +22,10 @@ surface, so ±2 pixels absorb centimetre offsets at the depth range whatever the
 is really gone is seen through over its whole silhouette but a thin rim. Only the points that fail
 the one-pixel test pay for the patch.
 
+A return from the floor (below the floor filter's threshold, `floor.py`) counts as no return: the ray
+went past whatever the map has above the floor there. Without this the bottom rim of a box that was
+taken away is "hit" by the floor just behind it, and stays in the map for ever.
+
 Only "through" points count against an object, so unseen and occluded objects keep their belief.
 """
 
@@ -31,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core.mapping.floor import floor_threshold
 from core.types import DepthFrame
 
 NOT_EXPECTED, HIT, THROUGH, OCCLUDED = 0, 1, 2, 3
@@ -68,14 +73,16 @@ class FrameView:
     margin_m: float
     noise_coeff_m: float
     patch_px: int = 2
+    floor_height_m: float = -np.inf
 
     @classmethod
     def of(cls, frame: DepthFrame, margin_m: float, noise_coeff_m: float, range_m: float | None = None,
-           patch_px: int = 2) -> FrameView:
+           patch_px: int = 2, floor_height_m: float = -np.inf) -> FrameView:
+        """The view of a frame; returns lower than `floor_height_m` (plus noise) are floor, i.e. no return."""
         R = frame.T_world_camera[:3, :3]
         t = frame.T_world_camera[:3, 3]
         limit = frame.range_m if range_m is None else min(range_m, frame.range_m)
-        return cls(frame.depth, frame.K, R.T, -R.T @ t, limit, margin_m, noise_coeff_m, patch_px)
+        return cls(frame.depth, frame.K, R.T, -R.T @ t, limit, margin_m, noise_coeff_m, patch_px, floor_height_m)
 
     @property
     def camera_position(self) -> np.ndarray:
@@ -108,26 +115,37 @@ class FrameView:
         margin = self.margin_m + 3.0 * self.noise_coeff_m * z**2
         inside = (z > 0.0) & (u >= 0) & (u < w) & (v >= 0) & (v < h) & (z + margin < self.range_m)
         idx = np.nonzero(inside)[0]
-        d = self.depth[v[idx].astype(int), u[idx].astype(int)].astype(float)
+        vi, ui = v[idx].astype(int), u[idx].astype(int)
+        raw = self.depth[vi, ui].astype(float)
+        d = self.beyond_floor(raw, vi, ui)
         zi, mi = z[idx], margin[idx]
         lab = np.full(len(idx), HIT, dtype=np.int8)
-        lab[(d < zi - mi) | (d <= 0.0)] = OCCLUDED  # no return next to a near one: no evidence either way
-        beyond = np.nonzero((d > zi + mi) | (d <= 0.0))[0]
+        lab[(d < zi - mi) | (raw <= 0.0)] = OCCLUDED  # no return next to a near one: no evidence either way
+        beyond = np.nonzero(d > zi + mi)[0]
         if len(beyond):
-            near = self.patch_min(v[idx[beyond]].astype(int), u[idx[beyond]].astype(int))
+            near = self.patch_min(vi[beyond], ui[beyond])
             lab[beyond[near > zi[beyond] + mi[beyond]]] = THROUGH
         labels[idx] = lab
         return labels
 
+    def beyond_floor(self, d: np.ndarray, v: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Depths (m) at pixels (v, u) with no return and floor returns made infinite."""
+        K, R = self.K, self.R_cw
+        ray_dz = R[0, 2] * (u - K[0, 2]) / K[0, 0] + R[1, 2] * (v - K[1, 2]) / K[1, 1] + R[2, 2]  # world z, unit depth
+        height = self.camera_position[2] + d * ray_dz
+        floor = height <= floor_threshold(d, ray_dz, self.floor_height_m, self.noise_coeff_m)
+        return np.where((d > 0.0) & ~floor, d, np.inf)
+
     def patch_min(self, v: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Nearest return (m) within ±`patch_px` pixels of each pixel (v, u); no return counts as infinitely far."""
+        """Nearest return (m) within ±`patch_px` pixels of each pixel (v, u); no return and the floor count as
+        infinitely far."""
         r = self.patch_px
         h, w = self.depth.shape
         off = np.arange(-r, r + 1)
         vv = np.clip(v[:, None, None] + off[None, :, None], 0, h - 1)
         uu = np.clip(u[:, None, None] + off[None, None, :], 0, w - 1)
-        d = self.depth[vv, uu].reshape(len(v), -1)
-        return np.where(d > 0.0, d, np.inf).min(axis=1)
+        d = self.beyond_floor(self.depth[vv, uu].astype(float), vv, uu)
+        return d.reshape(len(v), -1).min(axis=1)
 
 
 def count(labels: np.ndarray) -> VisibilityCounts:
