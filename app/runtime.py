@@ -440,6 +440,12 @@ class Runtime:
         self.backend.command(np.zeros(9), self.time)
 
     def _physics_loop(self) -> None:
+        try:
+            self._run_physics()
+        finally:  # GL contexts belong to this thread: free the cameras' renderers here
+            self.backend.close()
+
+    def _run_physics(self) -> None:
         dt = 0.01
         next_tick = time.perf_counter()
         while not self._stop_threads.is_set():

@@ -100,5 +100,6 @@ class SimRobot:
         return Observation(state=state, frames=frames, odometry=self.odometry(state))
 
     def close(self) -> None:
+        """Free the cameras' GL resources (call from the thread that rendered)."""
         for cam in self.cameras.values():
             cam.close()
