@@ -99,5 +99,6 @@ def test_studio_on_the_bridge_completes_a_two_subtask_sequence(studio_and_driver
             progress = api.get("/api/progress").json()
         health = api.get("/api/health").json()
     outcomes = [s["outcome"] for s in progress["subtasks"]]
-    assert progress["run_state"] == "finished" and outcomes == ["done", "done"], (progress, studio.output[-3000:])
+    assert progress["run_state"] == "finished" and outcomes == ["done", "done"], (progress, health,
+                                                                                   studio.output[-3000:])
     assert health["counters"]["rejected"] == {} and health["counters"]["frames"] > 0
