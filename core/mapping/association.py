@@ -1,18 +1,18 @@
 """Data association of segments to mapped objects (METHOD.md, perception step 3).
 
-The cost of segment j for object i comes from the distances of the segment's points to the object's
-surface (its submap EDF M_i, or its box faces), each truncated at `cap_m`; it is the smaller of
+The cost of segment j for object i is the mean over the segment's points of their distance to the
+object's surface (its submap EDF M_i, or its box faces), each distance truncated at `cap_m`: zero
+when the segment lies on the known surface, about the displacement when the object was pushed a
+little, `cap_m` when they are unrelated. Only objects whose bounding box, grown by the gate, overlaps
+the segment's are costed (the rest are infinite), so the work grows with the objects near what is
+seen. The optimal one-to-one assignment is scipy's `linear_sum_assignment`; pairs above `gate_m` are
+rejected.
 
-- their mean: zero when the segment lies on the known surface, about the displacement when the
-  object was pushed a little, `cap_m` when they are unrelated;
-- `cap_m` times the fraction of the points *not* explained by the surface (farther than `explain_m`):
-  a segment that continues a known surface (the next metres of a wall the robot drives along, the
-  side of a box coming into view) is the same object although its new part is far from what is known.
-
-Only objects whose bounding box, grown by the gate, overlaps the segment's are costed (the rest are
-infinite), so the work grows with the objects near what is seen. The optimal one-to-one assignment
-is scipy's `linear_sum_assignment`; pairs above `gate_m` are rejected. What a segment explains of
-other objects than its own (touching objects seen as one segment) is split off by `nearest_owner`.
+A segment is not always one object's: touching objects are one segment, and a segment may continue a
+known surface far beyond it (the next metres of a wall the robot drives along). Objects explaining a
+part of a segment (points within `explain_m` of their surface: `explained_fraction`) get those points,
+each point going to the nearest surface (`nearest_owner`); the object mapper gives the unexplained
+rest to the segment's match or, lacking one, to the object explaining most of it.
 """
 
 from __future__ import annotations
@@ -52,11 +52,6 @@ def truncated_mean_distance(distances: np.ndarray, cap_m: float) -> float:
 def explained_fraction(distances: np.ndarray, explain_m: float) -> float:
     """Fraction of a segment's points within `explain_m` of an object's surface."""
     return float(np.mean(distances < explain_m)) if len(distances) else 0.0
-
-
-def segment_cost(distances: np.ndarray, cap_m: float, explain_m: float) -> float:
-    """The association cost: min(truncated mean distance, cap · unexplained fraction)."""
-    return min(truncated_mean_distance(distances, cap_m), cap_m * (1.0 - explained_fraction(distances, explain_m)))
 
 
 def nearest_owner(distances: np.ndarray, explain_m: float) -> np.ndarray:

@@ -5,13 +5,13 @@ Per depth frame:
 1. points: unproject (every `pixel_stride`-th pixel, range cut-off), drop the floor and the robot
    (`scene_points.py`);
 2. segmentation: 5 cm voxels, 26-connected clusters of at least `min_segment_voxels` (`segmentation.py`);
-3. association: from the distances of a segment's (sampled) voxels to an object, i.e. to its submap
-   surface M_i or, for a box-like object, its fitted box's faces, whichever is nearer: cost = the
-   smaller of their truncated mean and the cap times the fraction they leave unexplained (a segment
-   continuing a known surface is that object); Hungarian with a gate. The voxels of a segment go to
-   the objects whose surfaces explain them, nearest first (touching objects seen as one segment, or
-   one object split by an occluder), the unexplained rest to the segment's match, or to a new object;
-   an object that repeats part of a larger one's surface is merged into it (`association.py`);
+3. association: cost = truncated mean distance of a segment's (sampled) voxels to an object, i.e. to
+   its submap surface M_i or, for a box-like object, its fitted box's faces, whichever is nearer;
+   Hungarian with a gate. The voxels of a segment go to the objects whose surfaces explain them,
+   nearest first (touching objects seen as one segment, one object split by an occluder), the
+   unexplained rest to the segment's match or else to the object explaining most of the segment (a
+   wall continuing beyond its known part); a segment nobody matches or explains is a new object; an
+   object that repeats part of a larger one's surface is merged into it (`association.py`);
 4. registration: when a fifth of a matched segment lies off a box-like object of pushable size,
    point-to-plane ICP moves the object (a box pushed 20–50 cm keeps its id at its new pose; farther
    moves are a new object and the old one goes by step 5) (`registration.py`); walls are never
@@ -229,15 +229,16 @@ class ObjectMapper:
 
     def _associate(self, segments: list[Segment], live: list[TrackedObject]) -> Association:
         """Who saw what: the points of each segment go to the objects whose surface explains them
-        (nearest first), what no surface explains to the segment's Hungarian match, or becomes a new
-        object; objects found to repeat part of another's surface are merged into it."""
+        (nearest first), what no surface explains to the segment's Hungarian match or else to the object
+        explaining most of the segment (it continues that surface); segments nobody explains or matches
+        are new objects; objects found to repeat part of another's surface are merged into it."""
         p = self.params
         distances: dict[tuple[int, int], np.ndarray] = {}
         samples = [seg.sample(p.cost_sample_points) for seg in segments]
 
         def cost(j: int, i: int) -> float:
             distances[j, i] = live[i].distance(samples[j], p.association_cap_m)
-            return association.segment_cost(distances[j, i], p.association_cap_m, p.explain_m)
+            return association.truncated_mean_distance(distances[j, i], p.association_cap_m)
 
         seg_bounds = np.array([[s.lower, s.upper] for s in segments]).reshape(-1, 2, 3)
         obj_bounds = np.array([o.bounds() for o in live]).reshape(-1, 2, 3)
@@ -252,7 +253,7 @@ class ObjectMapper:
             primary = owner.get(j)
             if not [i for i in explainers if i != primary]:
                 if primary is None:
-                    out.leftovers.append(seg)
+                    out.leftovers.append(seg)  # no explainers either
                 else:
                     out.add(live[primary], seg.points, samples[j], distances[j, primary])
                 continue
@@ -272,14 +273,9 @@ class ObjectMapper:
             if np.any(who == k):
                 out.add(obj, seg.points[who == k])
         rest = who < 0
-        if not np.any(rest):
-            return
-        if primary is not None:
-            out.add(primary, seg.points[rest])
-        elif rest.sum() >= p.min_segment_voxels:
-            out.leftovers.append(Segment(seg.points[rest], seg.counts[rest]))
-        else:
-            out.add(explainers[int(np.argmax(np.sum(dist < p.explain_m, axis=0)))], seg.points[rest])
+        if np.any(rest):
+            owner = primary if primary is not None else explainers[int(np.argmax(np.sum(dist < p.explain_m, axis=0)))]
+            out.add(owner, seg.points[rest])
 
     def _duplicates(self, dist: np.ndarray, objects: list[TrackedObject]) -> list[tuple[TrackedObject, TrackedObject]]:
         """(keep, gone) pairs among objects explaining one segment: the smaller object goes when it repeats
