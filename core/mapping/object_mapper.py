@@ -190,8 +190,8 @@ class ObjectMapper:
         return edf
 
     def occupied_points(self) -> np.ndarray:
-        """Surface voxel centroids (P×3) of the live objects."""
-        pts = [o.world_points for o in self.objects.values()]
+        """Well-supported surface voxel centroids (P×3) of the live objects (no single-return noise specks)."""
+        pts = [o.solid_world_points() for o in self.objects.values()]
         return np.concatenate(pts) if pts else np.zeros((0, 3))
 
     # --- one frame --------------------------------------------------------------------------------
