@@ -4,9 +4,14 @@ Each control step solves, for the active subtask's task order [T_1 … T_L], a s
 MPCs: level l minimises J_l + J_aux subject to the dynamics, bounds, the collision rows from the EDF
 and |e_i| ≤ |e_i*| + tol for each earlier level i (7c). The nonlinear problem is handled by
 Gauss-Newton SQP in real-time-iteration form: one structured QP (HPIPM) per level per step, around the
-previous solution shifted to now; right after a task switch, several iterations.
+previous solution shifted to now; right after a task switch, several iterations (until the plan stops
+moving, `sqp_step_tol`), each damped (`sqp_damping`) and bounded by an adaptive trust region.
 
-Public API: `HTMPC(robot, params).solve(state, refs, edf) -> Plan`, `reset()`.
+Public API: `HTMPC(robot, params).solve(state, refs, edf) -> Plan` (edf: anything with vectorised
+`distance(p)` and `gradient(p)`, e.g. `core.types.LocalEDF`, or None for no collision rows), `reset()`,
+and `enforce_timeout` (False in lockstep runs: simulated time waits for the solver). A failed QP, a
+non-finite state or map, a slow solve or an out-of-limit solution gives a braking plan along the last
+plan handed out (status FALLBACK or STOPPING, the reason in `message`; safety.py).
 """
 
 from __future__ import annotations
@@ -91,7 +96,7 @@ class HTMPC:
         self.kinematics = HorizonKinematicsEvaluator(robot, p.N + 1)
         self.collision = CollisionConstraint(robot.sphere_radii, p.delta_safe_m, p.gamma, p.constraint)
         self._qps: dict[int, StructuredQP] = {}
-        self.slack_group = _slack_groups(robot, p.slack_groups)
+        self.slack_group = slack_groups(robot, p.slack_groups)
         for n_lex in PREBUILT_LEX_ROWS:  # 15–45 ms each: not inside the first control step
             self._qp(n_lex)
         self.trust = np.array([p.trust_region_m] * 2 + [p.trust_region_rad] * 7)
@@ -148,8 +153,9 @@ class HTMPC:
     # --- one SQP iteration -------------------------------------------------------------------------
 
     def iterate(self, x0: np.ndarray, it: _Iterate, order: list[str], refs: References,
-                edf: DistanceField | None) -> StepResult:
-        """Linearise at the iterate and solve the levels; returns the last successful level's solution."""
+                edf: DistanceField | None, damping: float | None = None) -> StepResult:
+        """Linearise at the iterate and solve the levels; returns the last successful level's solution.
+        `damping`: λ of the Levenberg-Marquardt term (default `params.sqp_damping`)."""
         p = self.params
         kin = self.kinematics(it.q, it.v)
         lins = self._linearise(order, refs, it.q, kin)
@@ -163,7 +169,7 @@ class HTMPC:
         for i, level in enumerate(levels):
             n_lex = sum(b.lin.e0.shape[1] for b in bounds)
             qp = self._qp(n_lex)
-            arrays = base_arrays(qp, p, it.q, rows)
+            arrays = base_arrays(qp, p, it.q, rows, damping)
             for name in level:
                 task_cost(arrays, qp, lins[name], it.q, p)
             add_lex_rows(arrays, qp, bounds, it.q, p.lex_tolerance)
@@ -210,10 +216,11 @@ class HTMPC:
         self.trust_scale = min(1.0, 2.0 * self.trust_scale)
         it = self.warm_start(state)
         iters = p.sqp_iters_on_switch if (refs.switched or self._previous is None) else p.sqp_iters
+        damping = p.sqp_damping_on_switch if iters > 1 else p.sqp_damping
         step, level_ms = None, np.zeros(len(order) if p.hierarchy == "lexicographic" else 1)
         try:
             for _ in range(max(1, iters)):
-                step = self.iterate(x0, it, order, refs, edf)
+                step = self.iterate(x0, it, order, refs, edf, damping)
                 level_ms[: len(step.level_ms)] += step.level_ms
                 if step.failed_level == 0:
                     break
@@ -310,7 +317,7 @@ class HTMPC:
                     extras={"max_slack": max_slack, "levels": float(len(step.level_ms))})
 
 
-def _slack_groups(robot: RobotModel, kind: str) -> np.ndarray:
+def slack_groups(robot: RobotModel, kind: str) -> np.ndarray:
     """Slack index per sphere: 'sphere' (one each), 'body' (base/rack vs arm) or 'node' (one per node)."""
     names = [s.name for s in robot.spheres]
     if kind == "sphere":
@@ -321,6 +328,3 @@ def _slack_groups(robot: RobotModel, kind: str) -> np.ndarray:
         return np.zeros(len(names), int)
     raise ValueError(f"slack_groups must be 'sphere', 'body' or 'node', got {kind!r}")
 
-
-def _first(kin: HorizonKinematics) -> HorizonKinematics:
-    return HorizonKinematics(kin.p[:1], kin.R[:1], kin.Jp[:1], kin.Jw[:1], kin.P[:1], kin.JP[:1])

@@ -18,7 +18,7 @@ import numpy as np
 
 from core.htmpc.collision_constraint import DistanceField
 from core.htmpc.horizon_kinematics import HorizonKinematicsEvaluator
-from core.htmpc.htmpc import _slack_groups
+from core.htmpc.htmpc import slack_groups
 from core.params import HTMPCParams
 from core.robot.model import RobotModel
 from core.robot.symbolic_fk import SymbolicKinematics
@@ -67,7 +67,7 @@ class IpoptReference:
         self.tol = tol
         self.sym = SymbolicKinematics(robot)
         self.kin = HorizonKinematicsEvaluator(robot, self.params.N + 1)
-        self.groups = _slack_groups(robot, self.params.slack_groups)
+        self.groups = slack_groups(robot, self.params.slack_groups)
         self._cache: dict[tuple, tuple] = {}
 
     # --- symbolic pieces --------------------------------------------------------------------------

@@ -53,15 +53,18 @@ def task_cost(arrays: LevelArrays, qp: StructuredQP, lin: Linearisation, q_bar: 
         arrays.g[L.q(k)] += lin_term[k - 1]
 
 
-def base_arrays(qp: StructuredQP, params: HTMPCParams, q_bar: np.ndarray, rows: CollisionRows | None) -> LevelArrays:
-    """Everything but the task costs and (7c): regularisation, slack costs, dynamics and collision rows."""
+def base_arrays(qp: StructuredQP, params: HTMPCParams, q_bar: np.ndarray, rows: CollisionRows | None,
+                damping: float | None = None) -> LevelArrays:
+    """Everything but the task costs and (7c): regularisation, slack costs, dynamics and collision rows.
+    `damping` is λ of ½ λ ‖q − q̄‖² (default `params.sqp_damping`)."""
     dt, L = params.dt_s, qp.layout
     h = np.zeros(qp.H_sp.nnz())
     g = np.zeros(L.nv)
     eye = np.eye(NQ)
-    h[qp.H_qq] += params.sqp_damping * eye  # ½ λ ‖q − q̄‖²: Levenberg-Marquardt damping, also keeps H > 0
+    lam = params.sqp_damping if damping is None else damping
+    h[qp.H_qq] += lam * eye  # ½ λ ‖q − q̄‖²: Levenberg-Marquardt damping, also keeps H > 0
     for k in range(L.N + 1):
-        g[L.q(k)] -= params.sqp_damping * q_bar[k]
+        g[L.q(k)] -= lam * q_bar[k]
     h[qp.H_vv[1:]] += dt * params.Q_x * eye
     h[qp.H_aa] += dt * params.Q_u
     h[qp.H_ss] += 2.0 * params.slack_quadratic
