@@ -38,7 +38,10 @@ def bench_args(description: str, argv: list[str] | None = None) -> argparse.Name
 
 
 def percentile(samples: list[float] | np.ndarray, q: float) -> float:
-    return float(np.percentile(np.asarray(samples, dtype=float), q)) if len(samples) else float("nan")
+    """q-th percentile of the finite samples (NaN when there are none)."""
+    a = np.asarray(samples, dtype=float)
+    a = a[np.isfinite(a)]
+    return float(np.percentile(a, q)) if a.size else float("nan")
 
 
 def write_result(name: str, figures: dict[str, float], units: dict[str, str], targets: dict[str, str] | None = None,

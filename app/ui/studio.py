@@ -47,7 +47,7 @@ class Studio:
         tabs = self.server.gui.add_tab_group()
         with tabs.add_tab("Sequence"):
             self.authoring = AuthoringPanel(self.server, runtime)
-        with tabs.add_tab("Scene"):
+        with tabs.add_tab("Scene edits"):
             self.scene_panel = ScenePanel(self.server, runtime)
         with tabs.add_tab("Monitor"):
             self.monitor.build_plots()

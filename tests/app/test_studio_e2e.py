@@ -1,0 +1,126 @@
+"""The studio end to end in a real headless Chromium: author a two-subtask sequence through the GUI,
+start it, move a box through the UI while the robot runs, and check the runtime (box moved in MuJoCo,
+sequence finished). Screenshots are saved as test artefacts; with UPDATE_README_SCREENSHOT=1 the
+mid-run one also becomes docs/studio.png."""
+
+import os
+import shutil
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from app.runtime import Runtime, RuntimeConfig
+from app.snapshot import RunState
+from app.ui.studio import Studio
+from core.sim.scene import Box, Scene
+from tasks import TaskSequence
+from tests.app.conftest import ARTIFACTS, ROOT, free_port
+
+SCENE = Scene((Box("mover", (1.2, 2.0, 0.3)), Box("side", (4.0, -1.6, 0.3))), robot_start=(0.0, 0.0, 0.0))
+
+
+def row_inputs(page, label: str):
+    """The input elements of a GUI row, found by its label text."""
+    label_el = page.locator("label", has_text=label).first
+    label_el.wait_for(timeout=30_000)
+    return label_el.locator("xpath=ancestor::p/../..").locator("input")
+
+
+def set_vector(page, label: str, values) -> None:
+    inputs = row_inputs(page, label)
+    for i, v in enumerate(values):
+        field = inputs.nth(i)
+        field.fill(str(v))
+        field.press("Enter")
+    page.wait_for_timeout(300)
+
+
+def wait_for(predicate, timeout_s: float, what: str) -> None:
+    deadline = time.time() + timeout_s
+    while time.time() < deadline:
+        if predicate():
+            return
+        time.sleep(0.1)
+    pytest.fail(f"timed out waiting for {what}")
+
+
+@pytest.fixture
+def studio():
+    # half speed: a browser with software rendering on a busy machine lags seconds behind
+    runtime = Runtime(RuntimeConfig(map_kind="object", speed=0.5), scene=SCENE, sequence=TaskSequence(name="authored"))
+    studio = Studio(runtime, port=free_port())
+    runtime.start_live()
+    yield runtime, studio
+    runtime.shutdown()
+    studio.close()
+
+
+@pytest.mark.slow
+def test_author_run_and_move_a_box_in_the_browser(studio, page):
+    runtime, ui = studio
+    page.goto(ui.url)
+    page.get_by_text("EMERGENCY STOP").first.wait_for(timeout=60_000)
+
+    # author: a base goal, then an EE target, through the GUI fields and buttons
+    set_vector(page, "Target (m)", (3.0, 0.0, 0.9))
+    set_vector(page, "Target rpy (deg)", (0, 0, 0))
+    page.get_by_role("button", name="Base goal").click()
+    wait_for(lambda: len(runtime.sequence.subtasks) == 1, 10, "the base goal")
+    set_vector(page, "Target (m)", (3.8, 0.2, 1.1))
+    set_vector(page, "Target rpy (deg)", (0, 90, 0))
+    page.get_by_role("button", name="EE target").click()
+    wait_for(lambda: len(runtime.sequence.subtasks) == 2, 10, "the EE target")
+    base, ee = runtime.sequence.subtasks
+    assert (base.kind, base.target.x, base.target.y) == ("base", 3.0, 0.0)
+    assert ee.kind == "ee" and ee.target.position == (3.8, 0.2, 1.1) and ee.target.rpy_deg[1] == pytest.approx(90)
+    page.screenshot(path=str(ARTIFACTS / "studio_authored.png"))
+
+    # run it, and move a box through the Scene tab while the robot drives
+    page.get_by_role("button", name="Start").click()
+    wait_for(lambda: runtime.run_state == RunState.RUNNING and np.hypot(*runtime.state.v[:2]) > 0.1, 20,
+             "the robot to drive")
+    page.get_by_role("tab", name="Monitor").click()
+    page.get_by_text("running").first.wait_for(timeout=30_000)
+    page.wait_for_timeout(1500)
+    mid = ARTIFACTS / "studio_midrun.png"
+    page.screenshot(path=str(mid))
+    if os.environ.get("UPDATE_README_SCREENSHOT"):
+        (ROOT / "docs").mkdir(exist_ok=True)
+        shutil.copy(mid, ROOT / "docs" / "studio.png")
+    page.get_by_role("tab", name="Scene edits").click()
+    page.locator("label", has_text="Box").first.locator("xpath=ancestor::p/../..").locator("input").first.click()
+    page.get_by_role("option", name="mover").click()
+    set_vector(page, "Position (m)", (1.2, 3.0, 0.3))
+    wait_for(lambda: runtime.world.box("mover").position == (1.2, 3.0, 0.3), 10, "the box to move in MuJoCo")
+    page.screenshot(path=str(ARTIFACTS / "studio_box_moved.png"))
+
+    wait_for(lambda: runtime.run_state in (RunState.FINISHED, RunState.FAILED), 120, "the sequence to end")
+    assert runtime.run_state == RunState.FINISHED, runtime.status_line()
+    assert runtime.world.collisions == []
+    geom = runtime.world.model.geom("box_geom_0").id
+    np.testing.assert_allclose(runtime.world.data.geom_xpos[geom], (1.2, 3.0, 0.3))
+    page.wait_for_timeout(1000)
+    page.screenshot(path=str(ARTIFACTS / "studio_finished.png"))
+    assert page.get_by_text("sequence finished").count() >= 1
+
+
+@pytest.mark.slow
+def test_emergency_stop_hotkey_and_errors_as_notifications(studio, page):
+    runtime, ui = studio
+    page.goto(ui.url)
+    page.get_by_text("EMERGENCY STOP").first.wait_for(timeout=60_000)
+    # a bad edit (a box into the robot) becomes a notification; nothing changes
+    page.get_by_role("tab", name="Scene edits").click()
+    page.locator("label", has_text="Box").first.locator("xpath=ancestor::p/../..").locator("input").first.click()
+    page.get_by_role("option", name="mover").click()
+    set_vector(page, "Position (m)", (0.0, 0.0, 0.3))
+    page.get_by_text("overlap the robot").first.wait_for(timeout=10_000)
+    assert runtime.world.box("mover").position == (1.2, 2.0, 0.3)
+    # Escape stops the robot
+    page.locator("canvas").first.click(position={"x": 300, "y": 600})
+    page.keyboard.press("Escape")
+    wait_for(lambda: runtime.run_state == RunState.ESTOP, 10, "the emergency stop")
+    page.screenshot(path=str(ARTIFACTS / "studio_estop.png"))
+    assert threading.active_count() > 1
