@@ -43,6 +43,7 @@ def snapshot_to_dict(snap: Snapshot, with_points: bool = True) -> dict:
              "observations": o.observations} for o in snap.object_map.objects],
         "removed_ids": [] if snap.object_map is None else list(snap.object_map.removed_ids),
         "map_points": _arr(snap.map_points) if with_points else None,
+        "clouds": _arr(snap.clouds) if with_points else None,
         "edf_slice": None if snap.edf_slice is None else {
             "origin": _arr(snap.edf_slice.origin), "voxel": snap.edf_slice.voxel, "z_m": snap.edf_slice.z_m,
             "values": _arr(snap.edf_slice.values)},
@@ -76,6 +77,7 @@ def snapshot_from_dict(d: dict) -> Snapshot:
         run_state=RunState(d["run_state"]), status=d["status"],
         boxes=tuple(Box(i, tuple(pos), tuple(size), yaw) for i, pos, size, yaw in d["boxes"]), plan=plan,
         base_path=_np(d["base_path"]), object_map=objects, map_points=_np(d["map_points"]),
+        clouds=_np(d.get("clouds")),
         edf_slice=None if e is None else EDFSlice(_np(e["origin"]), e["voxel"], e["z_m"], _np(e["values"])),
         progress=tuple(SubtaskProgress(p["index"], p["name"], p["kind"], Outcome(p["outcome"]), p["elapsed_s"],
                                        p["held_s"], p["position_error_m"], p["orientation_error_deg"], p["message"])

@@ -120,6 +120,7 @@ class Runtime:
         self.last_control_wall = 0.0
         self.timings_ms: dict[str, float] = {}
         self.min_distance_m = math.nan
+        self.latest_frames: dict[str, DepthFrame] = {}
 
     @property
     def time(self) -> float:
@@ -147,13 +148,14 @@ class Runtime:
             if len(points) > 20000:
                 points = points[:: int(math.ceil(len(points) / 20000))]
             edf = self.last_edf
+            clouds = _clouds(self.latest_frames.values())
             messages = tuple(self._messages)
             self._messages.clear()
             return Snapshot(
                 seq=self._seq, wall_time=time.time(), state=self.state, run_state=self.run_state,
                 status=self.status_line(), boxes=self.world.boxes() if self.world else (), plan=self.plan,
                 base_path=None if self.sequencer.path is None else self.sequencer.path.copy(),
-                object_map=object_map, map_points=points, edf_slice=_edf_slice(edf),
+                object_map=object_map, map_points=points, edf_slice=_edf_slice(edf), clouds=clouds,
                 progress=tuple(self.sequencer.progress), active_index=self.sequencer.index,
                 sequence_version=self.sequence_version, min_distance_m=self.min_distance_m,
                 collisions=len(self.world.collisions) if self.world else 0, timings_ms=dict(self.timings_ms),
@@ -302,6 +304,8 @@ class Runtime:
             due.append(self._frames.popleft())
         if not due:
             return
+        for frame in due:
+            self.latest_frames[frame.camera] = frame
         from core.types import Observation
 
         t0 = time.perf_counter()
@@ -497,6 +501,17 @@ class Runtime:
         period = 1.0 / self.config.publish_hz
         while not self._stop_threads.wait(period):
             self.publish()
+
+
+CLOUD_STRIDE_PX = 8
+"""Every 8th pixel in u and v: about 1200 points per 320 × 240 frame, enough to see what a camera sees."""
+
+
+def _clouds(frames) -> np.ndarray | None:
+    from core.mapping import frame_points
+
+    pts = [frame_points(f, stride=CLOUD_STRIDE_PX) for f in frames]
+    return np.concatenate(pts) if pts else None
 
 
 def _edf_slice(edf: LocalEDF | None) -> EDFSlice | None:

@@ -54,6 +54,8 @@ class Snapshot:
     map_points: np.ndarray | None = None
     """Occupied points of the map (decimated), for the voxel view."""
     edf_slice: EDFSlice | None = None
+    clouds: np.ndarray | None = None
+    """Decimated world points of the latest depth frame of each camera (for the point-cloud layer)."""
     progress: tuple[SubtaskProgress, ...] = ()
     active_index: int = -1
     sequence_version: int = 0

@@ -55,6 +55,10 @@ class MapView:
             self._draw_spheres(snap)
         if self.show["frusta"]:
             self._draw_frusta(snap)
+        if self.show["clouds"] and snap.clouds is not None and len(snap.clouds):
+            colors = np.tile(np.array([[30, 160, 90]], np.uint8), (len(snap.clouds), 1))
+            self._layers["clouds"] = self.server.scene.add_point_cloud(
+                "/map/clouds", snap.clouds.astype(np.float32), colors, point_size=0.03, point_shape="circle")
 
     def _draw_objects(self, snap: Snapshot) -> None:
         objects = snap.object_map.objects if snap.object_map is not None else ()

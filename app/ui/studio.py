@@ -23,7 +23,7 @@ from app.ui.scene_view import SceneView
 log = logging.getLogger(__name__)
 
 LAYERS = {"objects": "Mapped objects", "voxels": "Map voxels", "edf": "EDF slice", "spheres": "Collision spheres",
-          "frusta": "Camera frusta"}
+          "frusta": "Camera frusta", "clouds": "Depth point clouds"}
 
 
 class Studio:
