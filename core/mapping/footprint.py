@@ -17,7 +17,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
-from scipy.spatial import cKDTree
 
 from core.mapping.box_fit import BoxFit
 
@@ -50,15 +49,27 @@ class Footprint:
         return (np.argwhere(self.occupied) + 0.5) * self.cell_m + self.origin
 
     def box_gap(self, fit: BoxFit) -> float:
-        """Largest distance (m) from the fitted box's footprint (sampled at `cell_m`) to an occupied cell."""
+        """Largest distance (m) from the fitted box's footprint (sampled at `cell_m`) to an occupied cell.
+
+        One 2D Euclidean distance transform of the free cells, on the footprint's grid grown to hold the box."""
         half = fit.half[:2]
+        R = fit.rotation[:2, :2]
+        corners = fit.centre[:2] + (np.array([[-1, -1], [-1, 1], [1, -1], [1, 1]]) * half) @ R.T
+        lo = np.floor(np.minimum(self.origin, corners.min(axis=0)) / self.cell_m).astype(int)
+        hi = np.ceil(np.maximum(self.origin + self.cell_m * np.array(self.top.shape), corners.max(axis=0))
+                     / self.cell_m).astype(int)
+        free = np.ones(tuple(hi - lo + 1), dtype=bool)
+        at = np.rint(self.origin / self.cell_m).astype(int) - lo
+        occ = self.occupied
+        free[at[0]:at[0] + occ.shape[0], at[1]:at[1] + occ.shape[1]] &= ~occ
+        gap = ndimage.distance_transform_edt(free) * self.cell_m
         n = np.maximum(np.ceil(2 * half / self.cell_m).astype(int), 1)
         u = (np.arange(n[0]) + 0.5) / n[0] * 2 * half[0] - half[0]
         v = (np.arange(n[1]) + 0.5) / n[1] * 2 * half[1] - half[1]
         uv = np.stack(np.meshgrid(u, v, indexing="ij"), axis=-1).reshape(-1, 2)
-        xy = uv @ fit.rotation[:2, :2].T + fit.centre[:2]
-        d, _ = cKDTree(self.cell_centres()).query(xy, k=1)
-        return float(d.max())
+        k = np.floor((uv @ R.T + fit.centre[:2]) / self.cell_m).astype(int) - lo
+        k = np.clip(k, 0, np.array(gap.shape) - 1)
+        return float(gap[k[:, 0], k[:, 1]].max())
 
     def grown(self, grow_m: float) -> Footprint:
         """The footprint grown by `grow_m` sideways (square neighbourhood) and upwards."""
