@@ -39,6 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--backend", choices=("sim", "bridge"), default="sim",
                        help="sim: embedded MuJoCo; bridge: a robot driver connected to the hardware bridge")
     serve.add_argument("--bridge-port", type=int, default=8090, help="port of the hardware bridge (--backend bridge)")
+    serve.add_argument("--bridge-host", default="127.0.0.1", help="address of the hardware bridge (--backend bridge)")
     run = sub.add_parser("run", help="run a sequence in lockstep and write a report")
     _common(run)
     run.add_argument("--headless", action="store_true", required=True, help="no browser: lockstep, as fast as possible")
@@ -82,10 +83,14 @@ def serve(args) -> int:
     if args.backend == "bridge":
         from app.bridge.server import BridgeServer
 
-        bridge = BridgeServer(port=args.bridge_port)
+        if args.speed != 1.0:
+            raise ValueError("--speed applies to the simulation; a real robot runs in real time")
+        if args.map_kind == "ground_truth":
+            raise ValueError("--map ground_truth needs the simulation; use object or voxel with --backend bridge")
+        bridge = BridgeServer(port=args.bridge_port, host=args.bridge_host)
         bridge.start()
         backend = bridge.robot
-        print(f"hardware bridge on http://127.0.0.1:{args.bridge_port} (token: {bridge.token})", flush=True)
+        print(f"hardware bridge on {bridge.url} (token: {bridge.token})", flush=True)
     runtime = Runtime(config, backend=backend)
     if bridge is not None:
         bridge.attach(runtime)

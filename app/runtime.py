@@ -138,8 +138,8 @@ class Runtime:
         log.warning(message)
         self._messages.append(message)
 
-    def snapshot(self) -> Snapshot:
-        """The current state of everything, as one value."""
+    def snapshot(self, consume_messages: bool = False) -> Snapshot:
+        """The current state of everything, as one value (`publish` hands the queued messages on)."""
         with self._lock:
             self._seq += 1
             with self._map_lock:
@@ -150,7 +150,8 @@ class Runtime:
             edf = self.last_edf
             clouds = _clouds(self.latest_frames.values())
             messages = tuple(self._messages)
-            self._messages.clear()
+            if consume_messages:
+                self._messages.clear()
             return Snapshot(
                 seq=self._seq, wall_time=time.time(), state=self.state, run_state=self.run_state,
                 status=self.status_line(), boxes=self.world.boxes() if self.world else (), plan=self.plan,
@@ -163,7 +164,8 @@ class Runtime:
                 messages=messages)
 
     def publish(self) -> Snapshot:
-        snap = self.snapshot()
+        """Send a snapshot, with the messages queued since the last publish, to every subscriber."""
+        snap = self.snapshot(consume_messages=True)
         for callback in list(self._subscribers):
             try:
                 callback(snap)
@@ -245,7 +247,9 @@ class Runtime:
                 self._build_parts()
 
     def set_speed(self, speed: float) -> None:
-        """Live mode: sim seconds per wall second."""
+        """Live mode: sim seconds per wall second (simulation only: a real robot runs in real time)."""
+        if self.world is None:
+            raise RuntimeError("speed applies to the simulation; a real robot runs in real time")
         self.config = replace(self.config, speed=float(speed))
 
     def configure(self, map_kind: str | None = None, constraint: str | None = None) -> None:
@@ -345,8 +349,9 @@ class Runtime:
         with self._lock:
             while self._pending_plans and self._pending_plans[0][0] <= t + 1e-9:
                 self.plan = self._pending_plans.popleft()[1]
-            running = self.run_state in (RunState.RUNNING, RunState.PAUSED)
-            qdot = self.plan.velocity_at(t) if (running and self.plan is not None) else np.zeros(9)
+            # paused, only the simulation freezes; a real robot would keep moving, so it gets zero
+            moving = self.run_state == RunState.RUNNING or (self.run_state == RunState.PAUSED and self.world)
+            qdot = self.plan.velocity_at(t) if (moving and self.plan is not None) else np.zeros(9)
         if not np.all(np.isfinite(qdot)):
             self.notify("non-finite command from the plan: stopping")
             qdot = np.zeros(9)
@@ -468,7 +473,7 @@ class Runtime:
 
     def _io_loop(self) -> None:
         period = 1.0 / self.controller.params.command_rate_hz
-        while not self._stop_threads.wait(period / max(self.config.speed, 1.0)):
+        while not self._stop_threads.wait(period / (max(self.config.speed, 1.0) if self.world else 1.0)):
             state = self._observe()
             self._last_qdot = self._command(state.t)
 

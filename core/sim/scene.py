@@ -180,12 +180,16 @@ def random_scene(seed: int, n_boxes: int = 8, area_m: float = 5.0, two_layers: b
         boxes: list[Box] = []
         n_stacked = int(rng.integers(0, max(1, n_boxes // 3) + 1)) if two_layers else 0
         n_floor = n_boxes - n_stacked
-        while len(boxes) < n_floor:
+        for _ in range(200 * n_floor):
+            if len(boxes) == n_floor:
+                break
             x, y = rng.uniform(-half + box_m / 2, half - box_m / 2, size=2)
             yaw = float(rng.uniform(-math.pi / 4, math.pi / 4))
             cand = Box(f"box_{len(boxes)}", (float(x), float(y), box_m / 2), (box_m,) * 3, yaw)
             if all(math.dist(cand.position[:2], b.position[:2]) > 1.5 * box_m for b in boxes):
                 boxes.append(cand)
+        if len(boxes) < n_floor:
+            continue  # too many boxes for the area: try another draw (bounded by max_tries)
         for k in rng.choice(n_floor, size=n_stacked, replace=False) if n_stacked else []:
             below = boxes[int(k)]
             boxes.append(replace(below, id=f"box_{len(boxes)}", position=(*below.position[:2], 1.5 * box_m)))

