@@ -19,7 +19,8 @@ Per depth frame:
 5. consistency: a matched object is updated by Delta = mean M_i at the observed points within the
    object grown by tau (its box, or its footprint's columns if it is not box-like, `footprint.py`:
    new surface revealed elsewhere is no change), its submap grows, and every third
-   observation its voxels seen through are counted, those seen through three times running carved;
+   observation its voxels seen through are counted, those seen through three times running carved
+   (and free space seen inside its box makes a box-like object hollow, i.e. mapped by its surface);
    an unmatched object whose expected-visible surface was seen through is a forced outlier
    (`visibility.py`, `consistency.py`); unseen or occluded objects keep their belief; an object with
    E[v] < theta_stat after more than `min_observations` updates is removed;
@@ -46,8 +47,14 @@ a box seen once after 3 (the "more than two updates" rule). Measured on rendered
 noise (bench/mapping_rate.py, both cameras at 10 Hz): boxes seen 1 s and 10 s are removed 3 ticks
 (6 frames) after their places come into clear view, against 14 and 18 ticks with POCD's cap 25 and
 unit forced outlier; 0 false removals over 60 s of still boxes swept in and out of the image, nor
-over 150 ticks of 10–200 boxes; the voxel baseline still held 1583 phantom voxels when they went
-and 96 after 60 ticks. With the hand camera alone, removal took 5–6 frames (tests).
+over 150 ticks of 10–200 boxes, nor over a lap of the paper's aisle at 0.5 m/s; the voxel baseline
+still held 1555 phantom voxels when they went. With the hand camera alone, removal took 5–6 frames
+(tests).
+
+The local EDF (`local_edf`, 9a–9b, signed) is built from every live object: a box-like object is its
+solid fitted box, any other (rows of boxes joined at corners) its well-supported surface voxels with
+the columns under them. Against the ground truth at the robot's collision spheres over the aisle lap
+it was never more than 3 cm optimistic and at most 0.2 m (median 0.1 m) conservative.
 """
 
 from __future__ import annotations
