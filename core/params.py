@@ -242,7 +242,9 @@ class MappingParams:
     theta_cutoff_m: float = 1.8
     """Distances are truncated here; outside the window the field is this constant."""
     theta_zero_m: float = 0.05
-    """Submap voxels with |M_i| ≤ theta_zero are the object's surface."""
+    """Submap voxels with |M_i| ≤ theta_zero are the object's surface (9a). Here by construction: a submap
+    keeps only the voxels surface points fell in, whose centroids are at |M_i| = 0 (`submap.py`); this is
+    the paper's symbol, not a knob."""
 
 
 @dataclass(frozen=True)
