@@ -113,14 +113,26 @@ class Association:
         """Ids of the objects merged into others."""
         return {g.id for _, g in self.merges}
 
-    def observed(self, n_sample: int, cap_m: float) -> list[Observed]:
-        """What each surviving object was seen by; shares of merged objects go to the object that took them."""
+    def keepers(self) -> dict[int, TrackedObject]:
+        """For each merged object's id, the surviving object it ends up in (merges may chain)."""
         into = {g.id: k for k, g in self.merges}
         for gone_id in list(into):
-            keep = into[gone_id]
-            while keep.id in into:
+            keep, seen = into[gone_id], {gone_id}
+            while keep.id in into and keep.id not in seen:
+                seen.add(keep.id)
                 keep = into[keep.id]
             into[gone_id] = keep
+        return into
+
+    def merge(self) -> None:
+        """Each merged object's surface into the object it ends up in."""
+        gone = {g.id: g for _, g in self.merges}
+        for gone_id, keep in self.keepers().items():
+            keep.absorb(gone[gone_id])
+
+    def observed(self, n_sample: int, cap_m: float) -> list[Observed]:
+        """What each surviving object was seen by; shares of merged objects go to the object that took them."""
+        into = self.keepers()
         shares: dict[int, list[tuple[np.ndarray, np.ndarray | None, np.ndarray | None]]] = {}
         owners: dict[int, TrackedObject] = {}
         for oid, parts in self.shares.items():
@@ -265,8 +277,7 @@ class ObjectMapper:
                     out.add(live[primary], seg.points, samples[j], distances[j, primary])
                 continue
             self._split(seg, [live[i] for i in explainers], None if primary is None else live[primary], out)
-        for keep, gone in out.merges:
-            keep.absorb(gone)
+        out.merge()
         return out
 
     def _split(self, seg: Segment, explainers: list[TrackedObject], primary: TrackedObject | None,
@@ -285,16 +296,16 @@ class ObjectMapper:
             out.add(owner, seg.points[rest])
 
     def _duplicates(self, dist: np.ndarray, objects: list[TrackedObject]) -> list[tuple[TrackedObject, TrackedObject]]:
-        """(keep, gone) pairs among objects explaining one segment: the smaller object goes when it repeats
-        part of the larger one's surface, i.e. most of the segment points it explains are explained by the
-        other as well, and so is most of its own surface (a box pushed against another is not a duplicate:
-        its old surface lies elsewhere, and is carved away as it is seen through)."""
+        """(keep, gone) pairs among objects explaining one segment: the smaller (on a tie the newer) goes
+        when it repeats part of the larger one's surface, i.e. most of the segment points it explains are
+        explained by the other as well, and so is most of its own surface (a box pushed against another is
+        not a duplicate: its old surface lies elsewhere, and is carved away as it is seen through)."""
         p = self.params
         near = dist < p.explain_m
         pairs = []
         for a in range(len(objects)):
             for b in range(a + 1, len(objects)):
-                small, big = (a, b) if len(objects[a].submap) <= len(objects[b].submap) else (b, a)
+                small, big = sorted((a, b), key=lambda i: (len(objects[i].submap), -objects[i].id))
                 n_small = int(near[:, small].sum())
                 if not n_small or np.sum(near[:, small] & near[:, big]) < p.duplicate_fraction * n_small:
                     continue
