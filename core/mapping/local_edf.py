@@ -8,7 +8,12 @@ With scipy's exact Euclidean distance transform:
     EDF = −h · (EDT(occupied) − 1/2)   at occupied nodes  (depth to the nearest free node)
 
 the transform of the free mask minus that of the occupied mask, as voxblox's and nvblox's ESDFs;
-the half voxel puts the zero level between the last occupied and the first free node. Negative
+the half voxel puts the zero level between the last occupied and the first free node. Nodes marked
+by surface points (objects mapped by their surface, the baseline's voxels) get the same half voxel:
+the surface lies within half a voxel of its node either way, so this reads a voxel-rounding nearer
+than the truth but never farther. Measured at the robot's spheres over a lap of the aisle: median
+−0.095 m, at most +0.03 m; without the shift for surface nodes the median was −0.045 m but up to
++0.06 m (optimistic) in places, which a safety filter should not see. Negative
 inside objects, so the gradient there points out. Truncated at ±theta_cutoff; outside the window
 the `LocalEDF` reads theta_cutoff. The transform runs on the window grown by `pad_m` so that objects
 just outside the window still shape the field near its edge.
