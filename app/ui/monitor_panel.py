@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from collections import deque
 
 import numpy as np
@@ -12,7 +13,22 @@ from app.snapshot import RunState, Snapshot
 
 HISTORY = 300
 MAX_OBJECTS = 6
+PLOT_PERIOD_S = 0.5
+"""Plots are re-sent at most twice a second: a software-rendered browser falls behind at 20 Hz."""
 _COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b")
+
+
+def _finite(a: np.ndarray) -> np.ndarray:
+    """NaN forward-filled (leading NaN → 0): one NaN makes viser's uPlot draw nothing at all."""
+    a = np.asarray(a, float).copy()
+    bad = ~np.isfinite(a)
+    if bad.all():
+        return np.zeros_like(a)
+    idx = np.where(~bad, np.arange(len(a)), 0)
+    np.maximum.accumulate(idx, out=idx)
+    a = a[idx]
+    a[: np.argmax(~bad)] = 0.0
+    return a
 
 
 def _series(labels: list[str]) -> tuple[uplot.Series, ...]:
@@ -29,6 +45,7 @@ class MonitorPanel:
         self.rows: deque[tuple] = deque(maxlen=HISTORY)
         self.solve = self.errors = self.clearance = self.consistency = None
         self._obj_ids: list[int] = []
+        self._last_plot = 0.0
         self.status = server.gui.add_markdown("**starting**", order=0)
         self.progress = server.gui.add_markdown("", order=1)
 
@@ -60,15 +77,17 @@ class MonitorPanel:
         self.rows.append((snap.state.t, snap.timings_ms.get("solve", np.nan), snap.timings_ms.get("mapping", np.nan),
                           errs[0] if errs else np.nan, errs[1] if len(errs) > 1 else np.nan, snap.min_distance_m,
                           [ev.get(i, np.nan) for i in self._obj_ids] + [np.nan] * (MAX_OBJECTS - len(self._obj_ids))))
-        if len(self.rows) % 2 or self.solve is None:
-            return  # plots at half the snapshot rate
+        now = time.monotonic()
+        if self.solve is None or now - self._last_plot < PLOT_PERIOD_S:
+            return
+        self._last_plot = now
         cols = list(zip(*self.rows, strict=True))
         t = np.asarray(cols[0], float)
-        self.solve.data = (t, np.asarray(cols[1], float), np.asarray(cols[2], float))
-        self.errors.data = (t, np.asarray(cols[3], float), np.asarray(cols[4], float))
-        self.clearance.data = (t, np.asarray(cols[5], float))
+        self.solve.data = (t, _finite(cols[1]), _finite(cols[2]))
+        self.errors.data = (t, _finite(cols[3]), _finite(cols[4]))
+        self.clearance.data = (t, _finite(cols[5]))
         evs = np.asarray(cols[6], float)
-        self.consistency.data = (t, *[evs[:, i] for i in range(MAX_OBJECTS)])
+        self.consistency.data = (t, *[_finite(evs[:, i]) for i in range(MAX_OBJECTS)])
 
     @staticmethod
     def _status(snap: Snapshot) -> str:

@@ -47,3 +47,4 @@ def test_undo_redo():
     assert h.redo() == a and h.can_redo
     h.push(add_base_goal(a, 5, 5, None))
     assert not h.can_redo and h.current != b
+

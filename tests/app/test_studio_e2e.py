@@ -4,6 +4,7 @@ sequence finished). Screenshots are saved as test artefacts; with UPDATE_README_
 mid-run one also becomes docs/studio.png."""
 
 import os
+import re
 import shutil
 import threading
 import time
@@ -18,7 +19,8 @@ from core.sim.scene import Box, Scene
 from tasks import TaskSequence
 from tests.app.conftest import ARTIFACTS, ROOT, free_port
 
-SCENE = Scene((Box("mover", (1.2, 2.0, 0.3)), Box("side", (4.0, -1.6, 0.3))), robot_start=(0.0, 0.0, 0.0))
+SCENE = Scene((Box("mover", (1.2, 2.0, 0.3)), Box("side", (2.5, -1.6, 0.3)), Box("far", (5.5, 1.8, 0.3))),
+              robot_start=(0.0, 0.0, 0.0))
 
 
 def row_inputs(page, label: str):
@@ -48,8 +50,8 @@ def wait_for(predicate, timeout_s: float, what: str) -> None:
 
 @pytest.fixture
 def studio():
-    # half speed: a browser with software rendering on a busy machine lags seconds behind
-    runtime = Runtime(RuntimeConfig(map_kind="object", speed=0.5), scene=SCENE, sequence=TaskSequence(name="authored"))
+    # slowed down: a browser with software rendering on a busy machine lags seconds behind the runtime
+    runtime = Runtime(RuntimeConfig(map_kind="object", speed=0.3), scene=SCENE, sequence=TaskSequence(name="authored"))
     studio = Studio(runtime, port=free_port())
     runtime.start_live()
     yield runtime, studio
@@ -64,17 +66,17 @@ def test_author_run_and_move_a_box_in_the_browser(studio, page):
     page.get_by_text("EMERGENCY STOP").first.wait_for(timeout=60_000)
 
     # author: a base goal, then an EE target, through the GUI fields and buttons
-    set_vector(page, "Target (m)", (3.0, 0.0, 0.9))
+    set_vector(page, "Target (m)", (4.0, 0.0, 0.9))
     set_vector(page, "Target rpy (deg)", (0, 0, 0))
     page.get_by_role("button", name="Base goal").click()
     wait_for(lambda: len(runtime.sequence.subtasks) == 1, 10, "the base goal")
-    set_vector(page, "Target (m)", (3.8, 0.2, 1.1))
+    set_vector(page, "Target (m)", (4.8, 0.2, 1.1))
     set_vector(page, "Target rpy (deg)", (0, 90, 0))
     page.get_by_role("button", name="EE target").click()
     wait_for(lambda: len(runtime.sequence.subtasks) == 2, 10, "the EE target")
     base, ee = runtime.sequence.subtasks
-    assert (base.kind, base.target.x, base.target.y) == ("base", 3.0, 0.0)
-    assert ee.kind == "ee" and ee.target.position == (3.8, 0.2, 1.1) and ee.target.rpy_deg[1] == pytest.approx(90)
+    assert (base.kind, base.target.x, base.target.y) == ("base", 4.0, 0.0)
+    assert ee.kind == "ee" and ee.target.position == (4.8, 0.2, 1.1) and ee.target.rpy_deg[1] == pytest.approx(90)
     page.screenshot(path=str(ARTIFACTS / "studio_authored.png"))
 
     # run it, and move a box through the Scene tab while the robot drives
@@ -82,8 +84,9 @@ def test_author_run_and_move_a_box_in_the_browser(studio, page):
     wait_for(lambda: runtime.run_state == RunState.RUNNING and np.hypot(*runtime.state.v[:2]) > 0.1, 20,
              "the robot to drive")
     page.get_by_role("tab", name="Monitor").click()
-    page.get_by_text("running").first.wait_for(timeout=30_000)
+    page.get_by_text(re.compile(r"▶\s*running")).first.wait_for(timeout=30_000)
     page.wait_for_timeout(1500)
+    assert runtime.run_state == RunState.RUNNING
     mid = ARTIFACTS / "studio_midrun.png"
     page.screenshot(path=str(mid))
     if os.environ.get("UPDATE_README_SCREENSHOT"):
@@ -119,7 +122,7 @@ def test_emergency_stop_hotkey_and_errors_as_notifications(studio, page):
     page.get_by_text("overlap the robot").first.wait_for(timeout=10_000)
     assert runtime.world.box("mover").position == (0.0, 2.0, 0.3)  # the refused edit changed nothing
     # Escape stops the robot
-    page.locator("canvas").first.click(position={"x": 300, "y": 600})
+    page.mouse.click(300, 600)  # focus the 3D view (not a text field) so the hotkey reaches viser
     page.keyboard.press("Escape")
     wait_for(lambda: runtime.run_state == RunState.ESTOP, 10, "the emergency stop")
     page.screenshot(path=str(ARTIFACTS / "studio_estop.png"))
