@@ -13,7 +13,7 @@ from app.snapshot import Snapshot
 from app.ui.colors import consistency_rgb, distance_rgb
 from app.ui.robot_view import wxyz
 from core.robot.model import RobotModel
-from core.types import ObjectStatus
+from core.types import MappedObject, ObjectStatus
 
 
 class MapView:
@@ -25,6 +25,7 @@ class MapView:
         self.show = {"objects": True, "voxels": False, "edf": False, "spheres": False, "frusta": True,
                      "clouds": False}
         self._objects: dict[int, tuple[tuple, viser.BoxHandle, viser.LabelHandle]] = {}
+        self._last_seen: dict[int, MappedObject] = {}
         self._layers: dict[str, object] = {}
         sphere = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
         self._sphere_mesh = (np.asarray(sphere.vertices, np.float32), np.asarray(sphere.faces, np.uint32))
@@ -60,11 +61,22 @@ class MapView:
             self._layers["clouds"] = self.server.scene.add_point_cloud(
                 "/map/clouds", snap.clouds.astype(np.float32), colors, point_size=0.03, point_shape="circle")
 
-    def _draw_objects(self, snap: Snapshot) -> None:
-        objects = snap.object_map.objects if snap.object_map is not None else ()
-        seen = set()
+    def _objects_to_draw(self, snap: Snapshot) -> list[tuple[MappedObject, bool]]:
+        """Live objects, plus removed ones at their last known pose (the map keeps only their ids)."""
+        objects = list(snap.object_map.objects) if snap.object_map is not None else []
         for obj in objects:
-            removed = obj.status == ObjectStatus.REMOVED
+            self._last_seen[obj.id] = obj
+        removed = set(snap.object_map.removed_ids) if snap.object_map is not None else set()
+        live = {o.id for o in objects}
+        out = [(o, o.status == ObjectStatus.REMOVED) for o in objects]
+        out += [(self._last_seen[i], True) for i in sorted(removed - live) if i in self._last_seen]
+        return out
+
+    def _draw_objects(self, snap: Snapshot) -> None:
+        seen = set()
+        if snap.object_map is None or not snap.object_map.objects and not snap.object_map.removed_ids:
+            self._last_seen.clear()  # a new map (reset, another map kind)
+        for obj, removed in self._objects_to_draw(snap):
             key = (tuple(np.round(obj.pose[:3, 3], 3)), tuple(np.round(obj.extent, 3)), round(obj.consistency, 2),
                    removed)
             seen.add(obj.id)
