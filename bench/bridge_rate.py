@@ -33,7 +33,7 @@ COMMAND_PERIOD_S = 0.01
 
 def _start_driver(server: BridgeServer, cameras: str) -> subprocess.Popen:
     proc = subprocess.Popen([sys.executable, "-m", "app.bridge.sim_driver", "--url", server.robot_url,
-                             "--token", server.token, "--cameras", cameras, "--log-level", "WARNING"], cwd=ROOT)
+                             f"--token={server.token}", "--cameras", cameras, "--log-level", "WARNING"], cwd=ROOT)
     if not server.robot.wait_for_state(120.0):
         proc.kill()
         raise SystemExit("the sim driver sent no state within 120 s")

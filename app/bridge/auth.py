@@ -59,7 +59,7 @@ def _checked(value: str, source: str) -> str:
 
 
 def _generate(path: Path) -> Token:
-    value = secrets.token_urlsafe(32)
+    value = secrets.token_hex(24)  # hex: a generated token never starts with "-" (argparse takes that for an option)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
     with os.fdopen(fd, "w", encoding="utf-8") as f:

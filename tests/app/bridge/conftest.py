@@ -75,7 +75,7 @@ class DriverProcess:
 
     def __init__(self, url: str, token: str, *extra: str) -> None:
         env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-        self.proc = subprocess.Popen([sys.executable, "-m", "app.bridge.sim_driver", "--url", url, "--token", token,
+        self.proc = subprocess.Popen([sys.executable, "-m", "app.bridge.sim_driver", "--url", url, f"--token={token}",
                                       *extra], cwd=ROOT, env=env, stdout=subprocess.PIPE,
                                      stderr=subprocess.STDOUT, text=True)
         self.lines: list[str] = []
