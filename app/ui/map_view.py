@@ -15,6 +15,14 @@ from app.ui.robot_view import wxyz
 from core.robot.model import RobotModel
 from core.types import MappedObject, ObjectStatus
 
+NOT_A_BOX_M = 1.6
+"""Objects longer than this are drawn as their points, not a box (the mapping registers only shorter ones
+as movable boxes: `MappingParams.registration_max_extent_m`)."""
+
+
+def _box_like(obj: MappedObject) -> bool:
+    return float(np.max(obj.extent[:2])) <= NOT_A_BOX_M or len(obj.points) == 0
+
 
 class MapView:
     """Scene nodes under `/map`; toggles decide which layers are sent."""
@@ -87,9 +95,15 @@ class MapView:
                 old[1].remove()
                 old[2].remove()
             color = (150, 150, 150) if removed else consistency_rgb(obj.consistency)
-            box = self.server.scene.add_box(f"/map/objects/{obj.id}", color=color,
-                                            dimensions=tuple(np.asarray(obj.extent) + 0.02), wireframe=True,
-                                            position=obj.pose[:3, 3], wxyz=wxyz(obj.pose[:3, :3]))
+            if _box_like(obj):
+                box = self.server.scene.add_box(f"/map/objects/{obj.id}", color=color,
+                                                dimensions=tuple(np.asarray(obj.extent) + 0.02), wireframe=True,
+                                                position=obj.pose[:3, 3], wxyz=wxyz(obj.pose[:3, :3]))
+            else:  # rows of shelves joined at corners: their bounding box would cover the corridor
+                pts = np.asarray(obj.points, np.float32)[:: max(1, len(obj.points) // 800)]
+                box = self.server.scene.add_point_cloud(f"/map/objects/{obj.id}", pts,
+                                                        np.tile(np.array([color], np.uint8), (len(pts), 1)),
+                                                        point_size=0.04, point_shape="square")
             text = f"#{obj.id} E[v]={obj.consistency:.2f}" + (" removed" if removed else "")
             label = self.server.scene.add_label(f"/map/labels/{obj.id}", text,
                                                 position=obj.pose[:3, 3] + [0, 0, obj.extent[2] / 2 + 0.15])
