@@ -262,5 +262,8 @@ class SequencerParams:
     obstacle_z_m: tuple[float, float] = (0.05, 2.0)
     """Occupied points between these heights block the base."""
     replan_period_s: float = 1.0
+    waypoint_pass_m: float = 0.5
+    """An intermediate base waypoint counts as passed once the base is this close to it (or beyond the
+    plan's nearest point to it); re-plans then start from the next one."""
     goal_slowdown_m: float = 0.8
     """Within this distance of the final goal the reference stops advancing past it."""

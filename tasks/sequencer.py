@@ -91,6 +91,7 @@ class Sequencer:
         self._grid_sig: int | None = None
         self._hold_base: np.ndarray | None = None
         self._ee_waypoint = 0
+        self._base_waypoint = 0
 
     @property
     def finished(self) -> bool:
@@ -169,6 +170,7 @@ class Sequencer:
         else:
             self._hold_base = state.q[:3].copy()
         self._ee_waypoint = 0
+        self._base_waypoint = 0
 
     def _set_progress(self, outcome: Outcome, elapsed: float, held: float, pos: float, ori: float,
                       message: str | None = None) -> None:
@@ -203,6 +205,7 @@ class Sequencer:
         self._maybe_replan(sub, state, occupied, t)
         s = path_arclength(self.path)
         self._s_progress = project_on_path(self.path, s, state.q[:2], self._s_progress)
+        self._pass_waypoints(sub, state.q[:2], s)
         return navigation_references(self.path, self._s_progress, float(state.q[2]), sub.goal().yaw_rad,
                                      self.ee_offset_base, self.params, self.n_nodes, self.dt, order, self._switched)
 
@@ -215,7 +218,7 @@ class Sequencer:
         due = t - self._plan_t >= self.params.replan_period_s
         if self.path is not None and sig == self._grid_sig and not due:
             return
-        goals = [w.xy() for w in sub.path()]
+        goals = [w.xy() for w in sub.path()[self._base_waypoint:]]
         notes: list[str] = []
         try:
             if grid is not None:
@@ -232,3 +235,17 @@ class Sequencer:
         p = self.progress[self.index]
         if message != p.message:
             self.progress[self.index] = replace(p, message=message)
+
+    def _pass_waypoints(self, sub: BaseSubtask, xy: np.ndarray, s: np.ndarray) -> None:
+        """Mark intermediate base waypoints passed, so a re-plan never leads back to one.
+
+        Passed: the base came within `waypoint_pass_m` of it, or its progress along the plan is beyond the
+        plan's point nearest to it (smoothed paths cut corners; a skipped waypoint is never reached)."""
+        if len(self.path) < 2:
+            return
+        while self._base_waypoint < len(sub.waypoints):
+            w = sub.waypoints[self._base_waypoint].xy()
+            near = float(np.hypot(*(xy - w))) <= self.params.waypoint_pass_m
+            if not (near or self._s_progress >= project_on_path(self.path, s, w)):
+                return
+            self._base_waypoint += 1

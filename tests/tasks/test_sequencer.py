@@ -85,6 +85,32 @@ def test_path_replans_around_new_obstacles(robot):
     assert np.abs(s.path[:, 1]).max() > 1.0 > np.abs(straight[:, 1]).max()
 
 
+def test_passed_waypoints_are_not_revisited_on_replan(robot):
+    """A re-plan after a waypoint was passed (here round a corner) leads on, never back to it."""
+    corner = BasePose(x=3.0, y=0.0)
+    seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=3.0, y=3.0), waypoints=[corner])])
+    s = Sequencer(robot, seq)
+    free = np.zeros((0, 3))
+    s.update(state_at(0.0, 0.0), free, 0.0)
+    assert np.linalg.norm(s.path - [3.0, 0.0], axis=1).min() < 0.05  # the plan goes through the corner
+    s.update(state_at(2.7, 0.5, math.pi / 2), free, 0.5)  # cut the corner, within waypoint_pass_m
+    s.update(state_at(2.9, 1.2, math.pi / 2), free, 2.0)  # re-plan is due
+    assert s.path[:, 1].min() > 1.0  # straight on to the goal: the corner is not visited again
+    assert s.path[-1] == pytest.approx([3.0, 3.0])
+
+
+def test_waypoint_passed_along_the_plan_without_coming_close(robot):
+    """A waypoint the smoothed plan passes wide of counts as passed once the base is beyond it on the plan."""
+    seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=6.0, y=0.0), waypoints=[BasePose(x=3.0, y=1.0)])])
+    s = Sequencer(robot, seq)
+    free = np.zeros((0, 3))
+    s.update(state_at(0.0, 0.0), free, 0.0)
+    s.path = np.array([[0.0, 0.0], [6.0, 0.0]])  # a plan 1 m wide of the waypoint
+    s.update(state_at(3.5, 0.0), free, 0.1)
+    s.update(state_at(3.5, 0.0), free, 1.5)
+    assert s.path[:, 1].max() < 0.05  # re-planned straight to the goal
+
+
 def test_empty_sequence_returns_nothing(robot):
     s = Sequencer(robot, TaskSequence())
     assert s.update(state_at(0, 0), None, 0.0) is None
