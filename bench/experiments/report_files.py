@@ -1,0 +1,141 @@
+"""The files of an experiment report: `<name>.json`, figures (PNG) and `README.md` in `reports/<name>/`.
+
+The JSON holds the run's settings, the machine, the commit, every trial's result and the summary
+figures; the markdown puts our figures beside the paper's (METHOD.md "What the paper measured").
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import logging
+import math
+import subprocess
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.patches as mpatches  # noqa: E402
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from bench.experiments.trials import ROOT  # noqa: E402
+from bench.report import machine  # noqa: E402
+from core.sim.scene import Box  # noqa: E402
+
+log = logging.getLogger(__name__)
+
+
+def git_commit() -> str:
+    """The checkout's HEAD commit (with '+dirty' when tracked files differ), or 'unknown'."""
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True,
+                              timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT,
+                               capture_output=True, text=True, timeout=10).stdout.strip()
+    except (OSError, subprocess.TimeoutExpired):
+        return "unknown"
+    return f"{head}+dirty" if dirty else (head or "unknown")
+
+
+def _clean(value):
+    """JSON-able copy: numpy scalars and arrays to Python, NaN and inf kept as None."""
+    if isinstance(value, dict):
+        return {str(k): _clean(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_clean(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _clean(value.tolist())
+    if isinstance(value, (np.bool_, bool)):
+        return bool(value)
+    if isinstance(value, (np.integer, int)):
+        return int(value)
+    if isinstance(value, (np.floating, float)):
+        return float(value) if math.isfinite(value) else None
+    return value
+
+
+def write_json(out_dir: Path, name: str, settings: dict, figures: dict, trials: list[dict],
+               quick: bool, extra: dict | None = None) -> Path:
+    """`<out_dir>/<name>.json`: settings, machine, commit, summary figures and every trial."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    payload = {
+        "experiment": name,
+        "when": dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "quick": quick,
+        "commit": git_commit(),
+        "machine": machine(),
+        "settings": settings,
+        "figures": figures,
+        "trials": [{k: v for k, v in t.items() if k != "traceback"} for t in trials],
+        "errors": [t for t in trials if "error" in t],
+        **(extra or {}),
+    }
+    path = out_dir / f"{name}.json"
+    path.write_text(json.dumps(_clean(payload), indent=1), encoding="utf-8")
+    return path
+
+
+def fmt(value, digits: int = 2) -> str:
+    """A table cell: numbers rounded, NaN/None as '–', booleans as yes/no."""
+    if value is None:
+        return "–"
+    if isinstance(value, (bool, np.bool_)):
+        return "yes" if value else "no"
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        return "–" if not math.isfinite(value) else f"{value:.{digits}f}"
+    return str(value)
+
+
+def md_table(headers: Sequence[str], rows: Iterable[Sequence]) -> str:
+    """A GitHub markdown table."""
+    lines = ["| " + " | ".join(headers) + " |", "| " + " | ".join("---" for _ in headers) + " |"]
+    lines += ["| " + " | ".join(fmt(c) for c in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def write_markdown(out_dir: Path, title: str, sections: list[tuple[str, str]], command: str, quick: bool) -> Path:
+    """`<out_dir>/README.md`: title, how it was made, then (heading, body) sections."""
+    head = [f"# {title}", "",
+            f"Made by `{command}`{' (quick smoke variant: few trials, not the full figures)' if quick else ''} "
+            f"on commit `{git_commit()}`, {dt.datetime.now(dt.UTC).strftime('%Y-%m-%d %H:%M UTC')}, "
+            f"{machine()['cpu']} ({machine()['cores']} cores). Simulated, lockstep, seeds fixed.", ""]
+    body = [f"## {h}\n\n{b.strip()}\n" for h, b in sections]
+    path = out_dir / "README.md"
+    path.write_text("\n".join(head + body), encoding="utf-8")
+    return path
+
+
+def save_figure(fig: plt.Figure, out_dir: Path, name: str) -> str:
+    """Save as `<out_dir>/<name>.png`, close it, return the file name (for the markdown)."""
+    fig.tight_layout()
+    fig.savefig(out_dir / f"{name}.png", dpi=110)
+    plt.close(fig)
+    return f"{name}.png"
+
+
+def draw_boxes(ax: plt.Axes, boxes: Iterable[Box], colour: str = "tan") -> None:
+    """Footprints of boxes (rotated rectangles) on a top view."""
+    for b in boxes:
+        ax.add_patch(mpatches.Rectangle((b.position[0] - b.size[0] / 2, b.position[1] - b.size[1] / 2), b.size[0],
+                                        b.size[1], angle=math.degrees(b.yaw), rotation_point="center",
+                                        color=colour, alpha=0.8))
+
+
+def rate(trials: list[dict], key: str) -> float:
+    """Fraction of trials (those that did not crash) where `key` is true."""
+    ok = [t for t in trials if "error" not in t]
+    return float(np.mean([bool(t.get(key)) for t in ok])) if ok else math.nan
+
+
+def stat(trials: list[dict], key: str, how: str = "median") -> float:
+    """Median (or mean, min, max) of the finite values of `key` over trials that did not crash."""
+    vals = np.array([t.get(key) for t in trials if "error" not in t and t.get(key) is not None], float)
+    vals = vals[np.isfinite(vals)]
+    if not len(vals):
+        return math.nan
+    return float({"median": np.median, "mean": np.mean, "min": np.min, "max": np.max}[how](vals))

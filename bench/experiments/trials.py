@@ -1,0 +1,153 @@
+"""Running independent trials: in this process, on a local process pool (default) or on a Ray cluster.
+
+A trial is a top-level function of one plain `dict` of parameters returning a JSON-able `dict`;
+`run_trials` calls it for every parameter set with a progress bar and returns the results in the
+order given, each merged with its parameters, `wall_s` and, when it raised, `error` (a crashed
+trial is reported, never dropped and never counted as a success).
+
+Workers are started with `spawn` (MuJoCo's GL contexts and casadi do not survive a fork) and with
+one BLAS/OpenMP thread each, so N workers use N cores. Ray is an optional extra
+(`pip install -e '.[ray]'`); it is imported only when `--ray ADDRESS` is given.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import sys
+import time
+import traceback
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from multiprocessing import get_context
+from pathlib import Path
+
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+import core.sim  # noqa: F401  (chooses the GL backend once; spawned workers inherit MUJOCO_GL)
+
+log = logging.getLogger(__name__)
+
+ROOT = Path(__file__).parents[2]
+REPORTS_DIR = ROOT / "reports"
+RAY_EXCLUDES = [".venv", ".git", "reports", "test-artifacts", "bench/results", "runs", "*.egg-info"]
+SINGLE_THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+TrialFn = Callable[[dict], dict]
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One independent run: `fn(params)`; `fn` must be a module-level function (it is pickled by name)."""
+
+    fn: TrialFn
+    params: dict = field(default_factory=dict)
+
+
+def experiment_args(name: str, description: str, argv: list[str] | None = None) -> argparse.Namespace:
+    """The command line every experiment shares."""
+    parser = argparse.ArgumentParser(prog=f"python -m bench.experiments.{name}", description=description)
+    parser.add_argument("--quick", action="store_true", help="smoke variant: a few short trials (1–2 minutes)")
+    parser.add_argument("--workers", type=int, default=2, help="local worker processes (1: run in this process)")
+    parser.add_argument("--ray", metavar="ADDRESS", default=None,
+                        help="run the trials on a Ray cluster at ADDRESS ('auto', 'ray://host:10001', 'local')")
+    parser.add_argument("--out", type=Path, default=REPORTS_DIR / name, help="report folder")
+    args = parser.parse_args(argv if argv is not None else sys.argv[1:])
+    if args.workers < 1:
+        parser.error("--workers must be at least 1")
+    return args
+
+
+QUIET_LOGGERS = ("core.htmpc", "tasks.sequencer", "app.runtime")
+"""Per-step warnings of these (a fallback plan, a failed subtask) are counted in the results; printed they
+would bury the progress bar."""
+
+
+def quiet_logs() -> None:
+    """Warnings from the closed loop's per-step loggers are not printed (they are in the trial results)."""
+    logging.basicConfig(level=logging.WARNING)
+    for name in QUIET_LOGGERS:
+        logging.getLogger(name).setLevel(logging.ERROR)
+
+
+def run_one(trial: Trial) -> dict:
+    """Run a trial, catching its failure: the result carries the parameters, `wall_s` and any `error`."""
+    t0 = time.perf_counter()
+    try:
+        out = trial.fn(dict(trial.params))
+    except Exception as err:  # a crashed trial is a result to report, not a reason to lose the sweep
+        log.exception("trial %s failed", trial.params)
+        out = {"error": f"{type(err).__name__}: {err}", "traceback": traceback.format_exc(limit=8)}
+    return {**trial.params, **out, "wall_s": time.perf_counter() - t0}
+
+
+def run_trials(trials: list[Trial], workers: int = 2, ray_address: str | None = None,
+               description: str = "trials") -> list[dict]:
+    """Run every trial (pool, Ray or in-process) with a progress bar; results in the order of `trials`."""
+    if not trials:
+        return []
+    if ray_address:
+        runner = _on_ray(trials, ray_address)
+    elif workers > 1 and len(trials) > 1:
+        runner = _on_pool(trials, workers)
+    else:
+        runner = ((i, run_one(t)) for i, t in enumerate(trials))
+    results: list[dict | None] = [None] * len(trials)
+    with _progress() as bar:
+        task = bar.add_task(description, total=len(trials))
+        for index, result in runner:
+            results[index] = result
+            bar.advance(task)
+    failed = sum("error" in r for r in results if r is not None)
+    if failed:
+        log.warning("%d of %d trials raised an error (kept in the results)", failed, len(trials))
+    return [r for r in results if r is not None]
+
+
+def _progress() -> Progress:
+    return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                    TextColumn("eta"), TimeRemainingColumn())
+
+
+def _on_pool(trials: list[Trial], workers: int) -> Iterator[tuple[int, dict]]:
+    """A spawn-context process pool; yields (index, result) as trials finish."""
+    for key, value in SINGLE_THREAD_ENV.items():
+        os.environ.setdefault(key, value)  # inherited by the spawned workers
+    with ProcessPoolExecutor(max_workers=min(workers, len(trials)), mp_context=get_context("spawn"),
+                             initializer=quiet_logs) as pool:
+        futures = {pool.submit(run_one, t): i for i, t in enumerate(trials)}
+        for future in as_completed(futures):
+            yield futures[future], future.result()
+
+
+def _run_one_quiet(trial: Trial) -> dict:
+    quiet_logs()
+    return run_one(trial)
+
+
+def _import_ray():
+    try:
+        import ray
+    except ImportError as err:
+        raise SystemExit("--ray needs the optional dependency ray: install the project's extra with "
+                         "`pip install -e '.[ray]'` (ray[default]>=2.9), or drop --ray to use local workers") from err
+    return ray
+
+
+def _on_ray(trials: list[Trial], address: str) -> Iterator[tuple[int, dict]]:
+    """Ship this checkout as the job's working dir and run one trial per Ray task (1 CPU each)."""
+    ray = _import_ray()
+    env = {"working_dir": str(ROOT), "excludes": RAY_EXCLUDES, "env_vars": dict(SINGLE_THREAD_ENV)}
+    ray.init(address=address, runtime_env=env, ignore_reinit_error=True, log_to_driver=False)
+    remote = ray.remote(num_cpus=1)(_run_one_quiet)
+    refs = {remote.remote(t): i for i, t in enumerate(trials)}
+    pending = list(refs)
+    try:
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            for ref in done:
+                yield refs[ref], ray.get(ref)
+    finally:
+        ray.shutdown()
