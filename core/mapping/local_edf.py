@@ -74,11 +74,16 @@ class EDFGrid:
 def mark_boxes(grid: EDFGrid, occupied: np.ndarray, boxes: Iterable[tuple[np.ndarray, np.ndarray]]) -> None:
     """Set the nodes inside upright boxes, given as (pose 4×4, yaw about z only; full extent 3).
 
+    Each half extent counts as at least half a voxel, so a thin box (the fit to the one face a camera
+    has seen) marks the nodes nearest to it, as its surface points would, wherever the window's nodes
+    fall; narrower than that it fell between the node rows and vanished from the field.
+
     The inside test is separable (x-y footprint × z range), so it is evaluated on the node axes by
     broadcasting instead of on every node of the block.
     """
     for pose, extent in boxes:
-        half = np.asarray(extent) / 2 + 1e-9
+        # a box fitted to one seen face is a slab thinner than a voxel: it takes at least its nearest nodes
+        half = np.maximum(np.asarray(extent) / 2, grid.voxel / 2) + 1e-9
         c, s, t = pose[0, 0], pose[1, 0], pose[:3, 3]
         reach = np.array([abs(c) * half[0] + abs(s) * half[1], abs(s) * half[0] + abs(c) * half[1], half[2]])
         found = grid.block(t - reach, t + reach)

@@ -40,6 +40,18 @@ def test_edf_within_one_voxel_of_the_analytic_distance(yaw):
     assert edf.distance(np.array([-1.0, -1.0, 0.5])) > 0.0
 
 
+@pytest.mark.parametrize("offset", [0.0, 0.013, 0.031, 0.05, 0.077])
+def test_a_box_fitted_to_one_face_stays_in_the_field_wherever_the_nodes_fall(offset):
+    """A long row seen only from the side is fitted as a slab of no thickness; it must not fall between
+    node rows (it did: the arm touched a shelf the field said was 1.8 m away)."""
+    face = Box("row", (0.0, 1.0 + offset, 0.4), (3.0, 0.0, 0.8), 0.0)
+    edf = _edf_of_box(face, centre=(0.0, 0.0))
+    for y in (0.7, 0.8, 1.3):
+        p = np.array([0.2, y + offset, 0.4])
+        assert abs(edf.distance(p) - abs(y - 1.0)) <= edf.voxel + 1e-9
+    assert edf.distance(np.array([0.2, 1.0 + offset, 0.4])) <= 0.0
+
+
 def test_gradient_is_unit_and_points_away_from_the_box():
     box = Box("b", (1.0, 0.3, 0.3), (0.6, 0.6, 0.6), 0.3)
     edf = _edf_of_box(box)
