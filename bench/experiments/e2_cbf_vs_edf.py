@@ -179,8 +179,8 @@ def figures_png(results: list[dict], speeds: tuple[float, ...], gamma_speed: flo
 
 
 def _row(figures: dict[str, float], prefix: str, label: list) -> list:
-    return label + [figures.get(f"{prefix}_{k}", math.nan) for k in
-                    ("trials", "success", "collision_free", "min_clearance_m_median", "min_clearance_m_min",
+    return label + [int(figures.get(f"{prefix}_trials", 0))] + [figures.get(f"{prefix}_{k}", math.nan) for k in
+                    ("success", "collision_free", "min_clearance_m_median", "min_clearance_m_min",
                      "approach_speed_mps_median", "time_s_median", "path_m_median")]
 
 
