@@ -62,9 +62,9 @@ SPOTS: tuple[tuple[float, float], ...] = (
 """Places for loose boxes, against a wall, away from the stops and the start. Two spots of one straight
 are far enough apart (≥ 1.6 m between the boxes) that the base passes between them whichever are taken."""
 PICK_INSET_M = 0.1
-"""The hand's pick target is this far in over the island's edge. The shipped example uses 0.2 m, which
-leaves the base and upper-arm spheres 5 cm from their delta boundary at the pick; the object map's
-EDF is up to one EDF voxel (0.1 m) conservative there and the pick times out 6 cm short (see README)."""
+"""The hand's pick target is this far in over the island's edge, as in the shipped example. At 0.2 m the
+base and upper-arm spheres end 5 cm from their delta boundary at the pick; the object map's EDF is up
+to one EDF voxel (0.1 m) conservative there and the pick timed out 6 cm short."""
 LOOSE = 4
 SEED = 0
 PAPER = "three laps of a circular aisle with two pick-up stops per lap while boxes are rearranged (no numbers)"
