@@ -289,9 +289,9 @@ def report(results: list[dict], pngs: list[str], out_dir: Path, quick: bool) -> 
                     [[r["part"], r["map"], lap["lap"], lap["completed"], ", ".join(lap["failed"]) or "–",
                       lap["collision_events"], lap["time_s"], lap["path_m"], lap["phantoms"], lap["moves_not_done"]]
                      for r in ok for lap in r["per_lap"]])
-    failed = md_table(["run", "map", "subtask", "after (s)", "why"],
-                      [[r["part"], r["map"], o["name"], o["elapsed_s"], o["message"]]
-                       for r in ok for o in r["outcomes"] if o["outcome"] != "done"]) or "None."
+    failed_rows = [[r["part"], r["map"], o["name"], o["elapsed_s"], o["message"]]
+                   for r in ok for o in r["outcomes"] if o["outcome"] != "done"]
+    failed = md_table(["run", "map", "subtask", "after (s)", "why"], failed_rows) if failed_rows else "None."
     errors = "\n".join(f"- {r['part']} {r['map']}: {r['error']}" for r in results if "error" in r) or "None."
     sections = [("Setup", __doc__.split("\n\n", 2)[2]),
                 ("Ours beside the paper", f"Paper: {PAPER}.\n\nOurs:\n\n{overall}\n\nPer lap:\n\n{laps}"),
