@@ -34,7 +34,7 @@ import numpy as np
 from app.runtime import Runtime, RuntimeConfig
 from bench.experiments.measures import PhantomCount, box_in_view, in_view, phantoms, run_metrics
 from bench.experiments.report_files import fmt, md_table, rate, save_figure, stat, write_json, write_markdown
-from bench.experiments.trials import Trial, experiment_args, quiet_logs, run_trials
+from bench.experiments.trials import Trial, experiment_args, load_trials, quiet_logs, run_trials
 from core.sim.scene import Box, random_scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 
@@ -275,7 +275,10 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     seeds = scene_seeds(1 if args.quick else 10)
     maps = ("object", "voxel") if args.quick else MAPS
     trials = [Trial(trial, {"seed": s, "map": m}) for s in seeds for m in maps]
-    results = run_trials(trials, args.workers, args.ray, "E1 scenes × maps")
+    if args.report_only:
+        results = load_trials(args.out, NAME, args.quick)
+    else:
+        results = run_trials(trials, args.workers, args.ray, "E1 scenes × maps")
     for r in results:
         r["phantoms_cleared_after_s_finite"] = math.isfinite(r.get("phantoms_cleared_after_s", math.nan))
     figures = summarise(results)

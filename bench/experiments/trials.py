@@ -13,7 +13,9 @@ one BLAS/OpenMP thread each, so N workers use N cores. Ray is an optional extra
 from __future__ import annotations
 
 import argparse
+import json
 import logging
+import math
 import os
 import sys
 import time
@@ -54,6 +56,8 @@ def experiment_args(name: str, description: str, argv: list[str] | None = None) 
     parser.add_argument("--ray", metavar="ADDRESS", default=None,
                         help="run the trials on a Ray cluster at ADDRESS ('auto', 'ray://host:10001', 'local')")
     parser.add_argument("--out", type=Path, default=REPORTS_DIR / name, help="report folder")
+    parser.add_argument("--report-only", action="store_true",
+                        help="no trials: rebuild figures and report from the JSON of the last run in --out")
     args = parser.parse_args(argv if argv is not None else sys.argv[1:])
     if args.workers < 1:
         parser.error("--workers must be at least 1")
@@ -70,6 +74,18 @@ def quiet_logs() -> None:
     logging.basicConfig(level=logging.WARNING)
     for name in QUIET_LOGGERS:
         logging.getLogger(name).setLevel(logging.ERROR)
+
+
+def load_trials(out_dir: Path, name: str, quick: bool) -> list[dict]:
+    """The trials of the last run saved in `<out_dir>/<name>.json` (for `--report-only`); NaN where it has null."""
+    path = out_dir / f"{name}.json"
+    if not path.exists():
+        raise SystemExit(f"--report-only: no earlier run at {path}; run the experiment without it first")
+    data = json.loads(path.read_text(encoding="utf-8"))
+    if bool(data.get("quick")) != quick:
+        raise SystemExit(f"--report-only: the run saved at {path} was{'' if data.get('quick') else ' not'} --quick; "
+                         "pass the same option")
+    return [{k: (math.nan if v is None else v) for k, v in t.items()} for t in data["trials"]]
 
 
 def run_one(trial: Trial) -> dict:
