@@ -34,6 +34,15 @@ def test_process_pool_matches_in_process():
     assert pooled == strip
 
 
+@pytest.mark.slow
+def test_trials_run_on_a_local_ray_cluster():
+    """`--ray local` starts a one-machine Ray cluster, ships this checkout and runs every trial there."""
+    pytest.importorskip("ray", reason="ray comes with the dev extra")
+    trials = [Trial(dict, {"x": x}) for x in (3, 1, 2)]  # dict(params) == params: a trial Ray can import
+    out = run_trials(trials, ray_address="local")
+    assert [r["x"] for r in out] == [3, 1, 2] and not any("error" in r for r in out)
+
+
 def test_command_line_defaults_and_bad_workers(tmp_path):
     args = experiment_args("e0", "test", ["--quick", "--out", str(tmp_path)])
     assert args.quick and args.workers == 2 and args.ray is None and args.out == tmp_path
