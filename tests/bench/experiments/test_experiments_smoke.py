@@ -36,8 +36,8 @@ def test_e1_object_map_forgets_boxes_moved_out_of_view_voxel_map_keeps_them(tmp_
 def test_e2_cbf_keeps_more_clearance_than_edf_and_gamma_orders_it(tmp_path):
     f = e2_cbf_vs_edf.main(["--quick", "--out", str(tmp_path)])
     data = _report(tmp_path, "e2_cbf_vs_edf")
-    assert len(data["trials"]) == 6  # 1 scene × 1 speed × 2 maps × 2 constraints + 2 gammas
-    for m in ("ground_truth", "object"):
+    assert len(data["trials"]) == 8  # 1 scene × 1 speed × 3 map conditions × 2 constraints + 2 gammas
+    for m in ("ground_truth", "object", "object_delayed"):
         for c in ("cbf", "edf"):
             assert f[f"{m}_{c}_success"] == f[f"{m}_{c}_collision_free"] == 1.0
     assert f["object_cbf_min_clearance_m_median"] > f["object_edf_min_clearance_m_median"]
