@@ -1,4 +1,4 @@
-"""The stale-state watchdog: when the driver's state gets older than `stale_after_s` (200 ms), or the
+"""The stale-state watchdog: when the driver's state gets older than `stale_after_s` (150 ms), or the
 driver disconnects, command zero velocity at once and tell the server (which pauses the runtime).
 
 It checks every `period_s` (5 ms) in its own thread, so it acts even when the runtime sends no

@@ -1,8 +1,8 @@
 """Stale-state safety: a driver that dies or freezes gets zero velocity within the 200 ms the issue names.
 
 Deadlines are measured on this process's monotonic clock: from the kill (or from the last state the
-bridge received) to the zero command the bridge issued. The slack over 200 ms covers the watchdog's
-5 ms tick and thread scheduling on a loaded 2-core machine.
+bridge received) to the zero command the bridge issued. The slack over the stale threshold (150 ms)
+covers the watchdog's 5 ms tick and thread scheduling on a loaded 2-core machine.
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from app.bridge.server import BridgeServer
 from tests.app.bridge.conftest import send_state, wait_until
 
 DEADLINE_S = 0.2
+"""Zero velocity within this of a driver's death (the issue)."""
 SCHEDULING_SLACK_S = 0.05
 
 
@@ -39,7 +40,9 @@ def test_state_older_than_200_ms_sends_a_zero_command(bridge: BridgeServer, raw_
             break
     assert msg["reason"] == "stale_state" and msg["qdot"] == [0.0] * 9
     zero = _zero_after(bridge, last_state)
-    assert DEADLINE_S < zero.at - last_state <= DEADLINE_S + SCHEDULING_SLACK_S, zero.at - last_state
+    stale_s = bridge.link.stale_after_s
+    assert stale_s < DEADLINE_S - 0.02  # caught by age alone inside the deadline, one state period spare
+    assert stale_s < zero.at - last_state <= stale_s + SCHEDULING_SLACK_S, zero.at - last_state
     assert bridge.robot.send(np.ones(9), 0.1).reason == "stale_state"
 
 
@@ -64,7 +67,8 @@ def test_frozen_driver_gets_zero_then_moves_on_when_it_thaws(bridge: BridgeServe
     assert wait_until(lambda: _zero_after(bridge, frozen_at) is not None, timeout_s=2)
     zero = _zero_after(bridge, frozen_at)
     last_state = bridge.link.state_received_at
-    assert DEADLINE_S < zero.at - last_state <= DEADLINE_S + SCHEDULING_SLACK_S, zero.at - last_state
+    stale_s = bridge.link.stale_after_s
+    assert stale_s < zero.at - last_state <= stale_s + SCHEDULING_SLACK_S, zero.at - last_state
     assert bridge.link.last_command.reason == "stale_state" and bridge.link.last_command.delivered
     driver.signal(signal.SIGCONT)
     assert wait_until(lambda: not bridge.watchdog.stale, timeout_s=10)
