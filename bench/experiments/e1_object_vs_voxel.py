@@ -34,7 +34,7 @@ import numpy as np
 from app.runtime import Runtime, RuntimeConfig
 from bench.experiments.measures import PhantomCount, box_in_view, in_view, phantoms, run_metrics
 from bench.experiments.report_files import fmt, md_table, rate, save_figure, stat, write_json, write_markdown
-from bench.experiments.trials import Trial, experiment_args, load_trials, quiet_logs, run_trials
+from bench.experiments.trials import Trial, experiment_args, quiet_logs, trial_results
 from core.sim.scene import Box, random_scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 
@@ -265,8 +265,7 @@ def report(results: list[dict], figures: dict[str, float], pngs: list[str], out_
         ("Figures", "\n\n".join(f"![{p}]({p})" for p in pngs)),
         ("Every trial", per_trial),
     ]
-    cmd = f"python -m bench.experiments.{NAME}{' --quick' if quick else ''}"
-    write_markdown(out_dir, "E1 — object-aware vs voxel-level map, boxes moved out of view", sections, cmd, quick)
+    write_markdown(out_dir, NAME, "E1 — object-aware vs voxel-level map, boxes moved out of view", sections, quick)
 
 
 def main(argv: list[str] | None = None) -> dict[str, float]:
@@ -275,10 +274,7 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     seeds = scene_seeds(1 if args.quick else 10)
     maps = ("object", "voxel") if args.quick else MAPS
     trials = [Trial(trial, {"seed": s, "map": m}) for s in seeds for m in maps]
-    if args.report_only:
-        results = load_trials(args.out, NAME, args.quick)
-    else:
-        results = run_trials(trials, args.workers, args.ray, "E1 scenes × maps")
+    results = trial_results(args, NAME, trials, "E1 scenes × maps")
     for r in results:
         r["phantoms_cleared_after_s_finite"] = math.isfinite(r.get("phantoms_cleared_after_s", math.nan))
     figures = summarise(results)

@@ -30,7 +30,7 @@ import numpy as np
 from app.runtime import Runtime, RuntimeConfig
 from bench.experiments.measures import NEAR_OBSTACLE_M, run_metrics
 from bench.experiments.report_files import fmt, md_table, rate, save_figure, stat, write_json, write_markdown
-from bench.experiments.trials import Trial, experiment_args, load_trials, quiet_logs, run_trials
+from bench.experiments.trials import Trial, experiment_args, quiet_logs, trial_results
 from core.params import HTMPCParams, SequencerParams
 from core.sim.scene import random_scene
 from tasks import BasePose, BaseSubtask, TaskSequence
@@ -225,8 +225,7 @@ def report(results: list[dict], figures: dict[str, float], speeds: tuple[float, 
         ("Figures", "\n\n".join(f"![{p}]({p})" for p in pngs)),
         ("Trials that failed or touched a box", failures),
     ]
-    cmd = f"python -m bench.experiments.{NAME}{' --quick' if quick else ''}"
-    write_markdown(out_dir, "E2 — CBF vs EDF constraints", sections, cmd, quick)
+    write_markdown(out_dir, NAME, "E2 — CBF vs EDF constraints", sections, quick)
 
 
 def main(argv: list[str] | None = None) -> dict[str, float]:
@@ -237,10 +236,7 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     gammas = (0.5, 4.0) if args.quick else GAMMAS
     gamma_speed = max(speeds)
     trials = main_trials(seeds, speeds, MAPS) + gamma_trials(seeds, gammas, gamma_speed)
-    if args.report_only:
-        results = load_trials(args.out, NAME, args.quick)
-    else:
-        results = run_trials(trials, args.workers, args.ray, "E2 scenes × speeds × maps × constraints")
+    results = trial_results(args, NAME, trials, "E2 scenes × speeds × maps × constraints")
     figures = summarise(results, speeds, gamma_speed)
     args.out.mkdir(parents=True, exist_ok=True)
     pngs = figures_png(results, speeds, gamma_speed, args.out)

@@ -34,7 +34,7 @@ from app.runtime import Runtime, RuntimeConfig
 from app.snapshot import RunState
 from bench.experiments.measures import body_distance, body_reach_m, collision_bodies, run_metrics
 from bench.experiments.report_files import fmt, md_table, rate, save_figure, stat, write_json, write_markdown
-from bench.experiments.trials import Trial, experiment_args, load_trials, quiet_logs, run_trials
+from bench.experiments.trials import Trial, experiment_args, quiet_logs, trial_results
 from core.params import HTMPCParams, RobotParams, SequencerParams
 from core.robot.collision_spheres import SPHERES
 from core.sim.scene import PAPER_BOX_M, Box, Scene
@@ -297,8 +297,7 @@ def report(results: list[dict], figures: dict[str, float], pngs: list[str], out_
                 ("Figures", "\n\n".join(f"![{p}]({p})" for p in pngs)),
                 ("Distance sweep, every trial", sweep),
                 ("Random pushes, every trial", rnd)]
-    cmd = f"python -m bench.experiments.{NAME}{' --quick' if quick else ''}"
-    write_markdown(out_dir, "E3 — reactive navigation at 1 m/s, boxes pushed in front", sections, cmd, quick)
+    write_markdown(out_dir, NAME, "E3 — reactive navigation at 1 m/s, boxes pushed in front", sections, quick)
 
 
 def build_trials(quick: bool) -> list[Trial]:
@@ -315,10 +314,7 @@ def build_trials(quick: bool) -> list[Trial]:
 def main(argv: list[str] | None = None) -> dict[str, float]:
     quiet_logs()
     args = experiment_args(NAME, __doc__.splitlines()[0], argv)
-    if args.report_only:
-        results = load_trials(args.out, NAME, args.quick)
-    else:
-        results = run_trials(build_trials(args.quick), args.workers, args.ray, "E3 pushes")
+    results = trial_results(args, NAME, build_trials(args.quick), "E3 pushes")
     figures = summarise(results)
     args.out.mkdir(parents=True, exist_ok=True)
     pngs = figures_png(results, args.out)

@@ -38,7 +38,7 @@ from app.runtime import Runtime, RuntimeConfig
 from app.snapshot import RunState
 from bench.experiments.measures import box_in_view, phantoms, run_metrics
 from bench.experiments.report_files import draw_boxes, fmt, md_table, save_figure, write_json, write_markdown
-from bench.experiments.trials import Trial, experiment_args, load_trials, quiet_logs, run_trials
+from bench.experiments.trials import Trial, experiment_args, quiet_logs, trial_results
 from core.sim.scene import PAPER_BOX_M, Box, Scene, aisle_scene
 from tasks import BasePose, BaseSubtask, EEPose, EESubtask, TaskSequence, Tolerance
 from tasks.sequence_file import EXAMPLES_DIR, load_sequence
@@ -298,8 +298,7 @@ def report(results: list[dict], pngs: list[str], out_dir: Path, quick: bool) -> 
                 ("Subtasks that failed (skipped, the run went on)", failed),
                 ("Figures", "\n\n".join(f"![{p}]({p})" for p in pngs)),
                 ("Crashed trials", errors)]
-    cmd = f"python -m bench.experiments.{NAME}{' --quick' if quick else ''}"
-    write_markdown(out_dir, "E4 — long-term: aisle laps with pick-ups while boxes are rearranged", sections, cmd,
+    write_markdown(out_dir, NAME, "E4 — long-term: aisle laps with pick-ups while boxes are rearranged", sections,
                    quick)
 
 
@@ -315,10 +314,7 @@ def build_trials(quick: bool) -> list[Trial]:
 def main(argv: list[str] | None = None) -> dict[str, float]:
     quiet_logs()
     args = experiment_args(NAME, __doc__.splitlines()[0], argv)
-    if args.report_only:
-        results = load_trials(args.out, NAME, args.quick)
-    else:
-        results = run_trials(build_trials(args.quick), args.workers, args.ray, "E4 runs")
+    results = trial_results(args, NAME, build_trials(args.quick), "E4 runs")
     figures = summarise(results)
     args.out.mkdir(parents=True, exist_ok=True)
     pngs = figures_png(results, args.out)

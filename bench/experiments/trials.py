@@ -88,6 +88,13 @@ def load_trials(out_dir: Path, name: str, quick: bool) -> list[dict]:
     return [{k: (math.nan if v is None else v) for k, v in t.items()} for t in data["trials"]]
 
 
+def trial_results(args: argparse.Namespace, name: str, trials: list[Trial], description: str) -> list[dict]:
+    """The experiment's results: its trials run now, or with `--report-only` those of the saved run."""
+    if args.report_only:
+        return load_trials(args.out, name, args.quick)
+    return run_trials(trials, args.workers, args.ray, description)
+
+
 def run_one(trial: Trial) -> dict:
     """Run a trial, catching its failure: the result carries the parameters, `wall_s` and any `error`."""
     t0 = time.perf_counter()
