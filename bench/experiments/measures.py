@@ -13,7 +13,6 @@ import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 
-import mujoco
 import numpy as np
 
 from app.run_log import RunLog
@@ -40,18 +39,8 @@ PHANTOM_MARGIN_M = 0.1
 def body_distance(world: SimWorld, group: str, boxes: tuple[Box, ...] | None = None,
                   cutoff_m: float = 5.0) -> float:
     """Smallest signed distance (m) between the geoms of `group` and the given (default: all) boxes."""
-    m, d = world.model, world.data
-    wanted = None if boxes is None else {b.id for b in boxes}
-    geoms = [m.geom(name).id for name in BODY_GROUPS[group]]
-    best = cutoff_m
-    with world.lock:
-        for box_id, slot in world._slot_of.items():
-            if wanted is not None and box_id not in wanted:
-                continue
-            g = int(world._slot_geom[slot])
-            for r in geoms:
-                best = min(best, mujoco.mj_geomDistance(m, d, int(r), g, best, None))
-    return float(best)
+    box_ids = None if boxes is None else {b.id for b in boxes}
+    return world.robot_box_distance(BODY_GROUPS[group], box_ids, cutoff_m)[0]
 
 
 def body_reach_m(world: SimWorld, group: str, q: np.ndarray) -> float:

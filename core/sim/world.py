@@ -14,6 +14,7 @@ from __future__ import annotations
 import logging
 import math
 import threading
+from collections.abc import Collection, Iterable
 from dataclasses import dataclass, replace
 
 import mujoco
@@ -286,18 +287,23 @@ class SimWorld:
 
     # --- ground-truth queries --------------------------------------------------------------------
 
-    def robot_box_distance(self) -> tuple[float, str | None]:
+    def robot_box_distance(self, robot_geoms: Iterable[str] | None = None, box_ids: Collection[str] | None = None,
+                           margin_m: float | None = None) -> tuple[float, str | None]:
         """Smallest signed distance (m) between robot geometry and any box, and that box's id.
 
-        Distances beyond `distance_margin_m` are reported as that margin (no narrow phase needed).
+        Optionally only the named robot geoms and the boxes of `box_ids`. Distances beyond `margin_m`
+        (default `distance_margin_m`) are reported as that margin (no narrow phase needed).
         """
         with self.lock:
-            best, best_id = self.params.distance_margin_m, None
+            best, best_id = self.params.distance_margin_m if margin_m is None else margin_m, None
             m, d = self.model, self.data
+            robot = self._robot_geoms if robot_geoms is None else [m.geom(name).id for name in robot_geoms]
             for box_id, slot in self._slot_of.items():
+                if box_ids is not None and box_id not in box_ids:
+                    continue
                 g = int(self._slot_geom[slot])
                 centre, rb = d.geom_xpos[g], m.geom_rbound[g]
-                for r in self._robot_geoms:
+                for r in robot:
                     bound = np.linalg.norm(d.geom_xpos[r] - centre) - rb - m.geom_rbound[r]
                     if bound >= best:
                         continue

@@ -1,5 +1,6 @@
 """The MuJoCo world: velocity tracking, scene edits while running, contacts, distances."""
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -131,6 +132,24 @@ def test_distance_and_collision_events(world):
     assert world.collisions and world.collisions[0].box_id == "wall"
     assert world.robot_box_distance()[0] < 0.01
     assert world.state().q[0] < 1.6  # the box stopped the robot
+
+
+def test_distance_from_some_robot_geoms_to_some_boxes(world):
+    """The query restricted to named robot geoms and box ids equals MuJoCo's distance over those pairs."""
+    world.load_scene(Scene((Box("near", (1.3, 0.0, 0.3)), Box("far", (-2.5, 1.0, 0.3))),
+                           robot_start=(0.0, 0.0, 0.0)))
+    geoms = ("base_body", "geom_wrist_3_link")
+    dist, box = world.robot_box_distance(geoms, {"far"}, margin_m=5.0)
+    assert box == "far"
+    assert dist == pytest.approx(_brute_force(world, geoms, "far"), abs=1e-9)
+    assert world.robot_box_distance(geoms, {"near"}, 5.0)[0] < dist
+    assert world.robot_box_distance(geoms, {"far"}, margin_m=0.5) == (0.5, None)  # beyond the margin
+
+
+def _brute_force(world, geoms, box_id: str) -> float:
+    m, d = world.model, world.data
+    g = next(k for k in range(m.ngeom) if world.box_id_of_geom(k) == box_id)
+    return min(mujoco.mj_geomDistance(m, d, m.geom(name).id, g, 10.0, None) for name in geoms)
 
 
 def test_walls_are_obstacles(robot):
