@@ -214,20 +214,20 @@ class Runtime:
 
     def stop(self) -> None:
         """Stop the sequence; the robot comes to rest."""
-        with self._lock:
-            self.run_state = RunState.IDLE
-            self.plan = None
-            self._pending_plans.clear()
-            self.backend.command(np.zeros(9), self.time)
+        self._halt(RunState.IDLE)
 
     def emergency_stop(self) -> None:
         """Zero velocity at once; nothing moves until `start` or `reset`."""
+        self._halt(RunState.ESTOP)
+        self.notify("emergency stop")
+
+    def _halt(self, run_state: RunState) -> None:
+        """Enter `run_state`, drop the plan and any delayed ones, command zero velocity now."""
         with self._lock:
-            self.run_state = RunState.ESTOP
+            self.run_state = run_state
             self.plan = None
             self._pending_plans.clear()
             self.backend.command(np.zeros(9), self.time)
-        self.notify("emergency stop")
 
     def reset(self, scene: Scene | None = None) -> None:
         """Reload the scene (robot back at its start), clear the map, the plan and the progress."""
