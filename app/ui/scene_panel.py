@@ -65,23 +65,22 @@ class ScenePanel:
         self.gizmo.visible = box_id is not None
         if box_id is None:
             return
-        box = self._boxes[box_id]
-        self._syncing = True
-        try:
-            self.gizmo.position = box.position
-            self.gizmo.wxyz = (math.cos(box.yaw / 2), 0.0, 0.0, math.sin(box.yaw / 2))
-            self.position.value = box.position
-            self.yaw.value = round(math.degrees(box.yaw), 2)
-        finally:
-            self._syncing = False
+        self._show_pose(self._boxes[box_id], move_gizmo=True)
 
     def _on_gizmo(self) -> None:
         if self._syncing or self.selected is None:
             return
         box = self.runtime.move_box(self.selected, tuple(self.gizmo.position), _yaw_of(np.asarray(self.gizmo.wxyz)))
         self._boxes[box.id] = box
+        self._show_pose(box, move_gizmo=False)  # the gizmo is where the user drags it
+
+    def _show_pose(self, box: Box, move_gizmo: bool) -> None:
+        """Show the box's pose in the typed fields (and on the gizmo) without firing their callbacks."""
         self._syncing = True
         try:
+            if move_gizmo:
+                self.gizmo.position = box.position
+                self.gizmo.wxyz = (math.cos(box.yaw / 2), 0.0, 0.0, math.sin(box.yaw / 2))
             self.position.value = box.position
             self.yaw.value = round(math.degrees(box.yaw), 2)
         finally:
