@@ -14,6 +14,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from app.run_log import RunLog  # noqa: E402
+from core.atomic_file import atomic_output, write_text_atomic  # noqa: E402
 from core.sim.scene import Box  # noqa: E402
 
 
@@ -29,8 +30,8 @@ def write_report(out_dir: Path, log: RunLog, boxes: tuple[Box, ...], meta: dict)
     """Write `report.json`, `path.png` and `timeseries.png` into `out_dir`; returns the summary."""
     out_dir.mkdir(parents=True, exist_ok=True)
     summary = {**log.summary(), **{k: v for k, v in meta.items() if isinstance(v, (int, float))}}
-    (out_dir / "report.json").write_text(json.dumps({"meta": meta, "summary": summary, "log": log.to_json()},
-                                                    indent=1, allow_nan=True), encoding="utf-8")
+    write_text_atomic(out_dir / "report.json", json.dumps({"meta": meta, "summary": summary, "log": log.to_json()},
+                                                         indent=1, allow_nan=True))
     q = np.array(log.q) if log.q else np.zeros((0, 9))
     fig, ax = plt.subplots(figsize=(6, 6))
     _draw_boxes(ax, boxes)
@@ -43,7 +44,8 @@ def write_report(out_dir: Path, log: RunLog, boxes: tuple[Box, ...], meta: dict)
     ax.set_ylabel("y (m)")
     ax.set_title(meta.get("title", "base path"))
     ax.legend(loc="best")
-    fig.savefig(out_dir / "path.png", dpi=120, bbox_inches="tight")
+    with atomic_output(out_dir / "path.png", "wb") as f:
+        fig.savefig(f, format="png", dpi=120, bbox_inches="tight")
     plt.close(fig)
 
     t = np.array(log.t)
@@ -60,6 +62,7 @@ def write_report(out_dir: Path, log: RunLog, boxes: tuple[Box, ...], meta: dict)
     axes[2].set_ylabel("solve (ms)")
     axes[2].set_xlabel("sim time (s)")
     fig.tight_layout()
-    fig.savefig(out_dir / "timeseries.png", dpi=110)
+    with atomic_output(out_dir / "timeseries.png", "wb") as f:
+        fig.savefig(f, format="png", dpi=110)
     plt.close(fig)
     return summary

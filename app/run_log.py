@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from core.atomic_file import write_text_atomic
 from core.types import Plan, RobotState
 
 
@@ -82,4 +83,4 @@ class RunLog:
         }
 
     def save(self, path: Path) -> None:
-        path.write_text(json.dumps(self.to_json(), allow_nan=True), encoding="utf-8")
+        write_text_atomic(path, json.dumps(self.to_json(), allow_nan=True))

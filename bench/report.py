@@ -14,6 +14,8 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
+from core.atomic_file import write_text_atomic
+
 RESULTS_DIR = Path(__file__).parent / "results"
 
 
@@ -68,5 +70,5 @@ def write_result(name: str, figures: dict[str, float], units: dict[str, str], ta
     if extra:
         payload["extra"] = extra
     path = RESULTS_DIR / f"{name}.json"
-    path.write_text(json.dumps(payload, indent=2), encoding="utf-8")
+    write_text_atomic(path, json.dumps(payload, indent=2))
     return path

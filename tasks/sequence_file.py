@@ -6,6 +6,7 @@ from pathlib import Path
 
 import yaml
 
+from core.atomic_file import write_text_atomic
 from core.yaml_validation import FileFormatError, load_yaml_file, load_yaml_model
 from tasks.schema import TaskSequence
 
@@ -36,4 +37,4 @@ def sequence_to_yaml(seq: TaskSequence) -> str:
 
 def save_sequence(seq: TaskSequence, path: str | Path) -> None:
     """Write a sequence file."""
-    Path(path).write_text(sequence_to_yaml(seq), encoding="utf-8")
+    write_text_atomic(path, sequence_to_yaml(seq))

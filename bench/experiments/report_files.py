@@ -23,6 +23,7 @@ import numpy as np  # noqa: E402
 
 from bench.experiments.trials import ROOT  # noqa: E402
 from bench.report import machine  # noqa: E402
+from core.atomic_file import atomic_output, write_text_atomic  # noqa: E402
 from core.sim.scene import Box  # noqa: E402
 
 log = logging.getLogger(__name__)
@@ -74,7 +75,7 @@ def write_json(out_dir: Path, name: str, settings: dict, figures: dict, trials: 
         **(extra or {}),
     }
     path = out_dir / f"{name}.json"
-    path.write_text(json.dumps(_clean(payload), indent=1), encoding="utf-8")
+    write_text_atomic(path, json.dumps(_clean(payload), indent=1))
     return path
 
 
@@ -107,14 +108,15 @@ def write_markdown(out_dir: Path, name: str, title: str, sections: list[tuple[st
             f"{machine()['cpu']} ({machine()['cores']} cores). Simulated, lockstep, seeds fixed.", ""]
     body = [f"## {h}\n\n{b.strip()}\n" for h, b in sections]
     path = out_dir / "README.md"
-    path.write_text("\n".join(head + body), encoding="utf-8")
+    write_text_atomic(path, "\n".join(head + body))
     return path
 
 
 def save_figure(fig: plt.Figure, out_dir: Path, name: str) -> str:
     """Save as `<out_dir>/<name>.png`, close it, return the file name (for the markdown)."""
     fig.tight_layout()
-    fig.savefig(out_dir / f"{name}.png", dpi=110)
+    with atomic_output(out_dir / f"{name}.png", "wb") as f:
+        fig.savefig(f, format="png", dpi=110)
     plt.close(fig)
     return f"{name}.png"
 

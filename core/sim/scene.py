@@ -14,6 +14,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 from scipy import ndimage
 
+from core.atomic_file import write_text_atomic
 from core.yaml_validation import dump_yaml_model, load_yaml_file, load_yaml_model
 
 PAPER_BOX_M = 0.6
@@ -134,7 +135,7 @@ def scene_to_yaml(scene: Scene) -> str:
 
 def save_scene(scene: Scene, path: str | Path) -> None:
     """Write a scene YAML file."""
-    Path(path).write_text(scene_to_yaml(scene), encoding="utf-8")
+    write_text_atomic(path, scene_to_yaml(scene))
 
 
 # --- generators ---------------------------------------------------------------------------------
