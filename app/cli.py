@@ -25,6 +25,10 @@ def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--map", dest="map_kind", choices=MAP_KINDS, default="object", help="map the controller uses")
     parser.add_argument("--constraint", choices=("cbf", "edf"), default="cbf", help="collision constraint kind")
     parser.add_argument("--log-level", default="INFO")
+    parser.add_argument("--record", type=Path, default=None,
+                        help="record the run to this MCAP file (.mcap; replay with `python -m app replay FILE`)")
+    parser.add_argument("--record-depth", action="store_true",
+                        help="with --record: keep the depth frames too (about 0.2 MB a frame)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -35,7 +39,6 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--host", default="127.0.0.1", help="address to serve on (default: this machine only)")
     serve.add_argument("--port", type=int, default=8080)
     serve.add_argument("--speed", type=float, default=1.0, help="sim seconds per wall second")
-    serve.add_argument("--record", type=Path, default=None, help="record snapshots to this .jsonl.gz file")
     serve.add_argument("--backend", choices=("sim", "bridge"), default="sim",
                        help="sim: embedded MuJoCo; bridge: a robot driver connected to the hardware bridge")
     serve.add_argument("--bridge-port", type=int, default=8090, help="port of the hardware bridge (--backend bridge)")
@@ -64,6 +67,15 @@ def _scene_for(args) -> Path:
     if seq.scene:
         return (args.sequence.parent / seq.scene).resolve()
     return DEFAULT_SCENE
+
+
+def _recorder(args):
+    """The MCAP recorder that --record asks for, else None."""
+    if not args.record:
+        return None
+    from app.recording import Recorder
+
+    return Recorder(args.record, depth_frames=args.record_depth)
 
 
 def _wait_for_signal() -> None:
@@ -95,11 +107,8 @@ def serve(args) -> int:
     if bridge is not None:
         bridge.attach(runtime)
     studio = Studio(runtime, host=args.host, port=args.port)
-    recorder = None
-    if args.record:
-        from app.recording import Recorder
-
-        recorder = Recorder(args.record)
+    recorder = _recorder(args)
+    if recorder is not None:
         runtime.subscribe(recorder)
     runtime.start_live()
     print(f"Perceptive HTMPC Studio: open {studio.url} in a browser (Ctrl+C to quit)", flush=True)
@@ -121,11 +130,18 @@ def run_headless(args) -> int:
                            constraint=args.constraint, perception_delay_s=args.perception_delay,
                            actuation_delay_s=args.actuation_delay)
     runtime = Runtime(config)
+    recorder = _recorder(args)
+    if recorder is not None:
+        runtime.subscribe(recorder)
     from rich.progress import Progress
 
     with Progress() as progress:
         task = progress.add_task("lockstep run", total=args.max_duration)
-        runtime.run_lockstep(args.max_duration, on_control=lambda rt: progress.update(task, completed=rt.time))
+        runtime.run_lockstep(args.max_duration, publish_every=1 if recorder else 0,
+                             on_control=lambda rt: progress.update(task, completed=rt.time))
+    if recorder is not None:
+        recorder.close()
+        print(f"recording written to {args.record} ({recorder.count} snapshots)")
     out = args.out or ROOT / "runs" / dt.datetime.now().strftime("%Y%m%d-%H%M%S")
     meta = {"title": runtime.sequence.name, "sequence": str(args.sequence), "scene": str(config.scene),
             "map": args.map_kind, "constraint": args.constraint, "outcome": runtime.run_state.value,
@@ -144,6 +160,7 @@ def replay(args) -> int:
     from app.ui.studio import Studio
 
     source = ReplaySource(args.file)
+    print(source.recording.report, flush=True)
     studio = Studio(source, host=args.host, port=args.port)
     source.start_live()
     print(f"Replay of {args.file}: open {studio.url} (Start plays, Step advances, Reset rewinds)", flush=True)

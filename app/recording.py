@@ -1,117 +1,283 @@
-"""Record a run's snapshots to a file and read them back for replay in the studio.
+"""Record a run's snapshots to an MCAP file and read them back (replay, Foxglove, ROS 2 tools).
 
-Format: gzip-compressed JSON Lines, one snapshot a line (numbers as lists), with a header line
-naming the format version. Map points are kept every `points_every`-th snapshot to stay small.
+Crash safety: messages go into MCAP chunks (zstd, each self-contained with its schemas and channels
+the first time they appear) that are closed, written and fsynced every `flush_every_s` of wall time
+or when `chunk_bytes` of messages are pending, always between two snapshots. A process killed at any
+moment leaves a file whose complete chunks hold whole snapshots; `read_recording` reads it from the
+start without the summary section (mcap's streaming reader), keeps every complete chunk and reports
+what it dropped: the unfinished tail of the file and the fact that the summary is missing (the at
+most `flush_every_s` of snapshots still in memory at the kill are gone). Topics: `recording_topics`.
+
+Writing happens on the recorder's own thread so that compression and fsync never hold up the loop
+that publishes snapshots; a full queue makes the publisher wait (nothing is dropped silently).
 """
 
 from __future__ import annotations
 
-import gzip
 import json
-from collections.abc import Iterator
+import logging
+import os
+import queue
+import struct
+import threading
+import time
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
+from mcap.exceptions import McapError
+from mcap.records import Channel as McapChannel
+from mcap.records import Chunk, Footer, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap.writer import CompressionType, Writer
 
-from app.snapshot import EDFSlice, RunState, Snapshot
-from core.sim.scene import Box
-from core.types import MappedObject, ObjectMapSnapshot, ObjectStatus, Plan, PlanStatus, Posterior, RobotState
-from tasks.sequencer import Outcome, SubtaskProgress
+from app.recording_topics import (
+    FIXED_TOPICS,
+    FORMAT,
+    SCHEMAS,
+    STATUS_TOPIC,
+    depth_frame_from_messages,
+    depth_messages,
+    depth_topics,
+    snapshot_from_messages,
+    snapshot_messages,
+)
+from app.snapshot import Snapshot
+from core.atomic_file import fsync_dir
+from core.types import DepthFrame
 
-FORMAT = "perceptive-htmpc-recording/1"
+log = logging.getLogger(__name__)
 
-
-def _arr(a) -> list | None:
-    return None if a is None else np.asarray(a, float).round(5).tolist()
-
-
-def snapshot_to_dict(snap: Snapshot, with_points: bool = True) -> dict:
-    plan = snap.plan
-    return {
-        "seq": snap.seq, "wall_time": snap.wall_time, "t": snap.state.t,
-        "q": _arr(snap.state.q), "v": _arr(snap.state.v),
-        "run_state": snap.run_state.value, "status": snap.status,
-        "boxes": [[b.id, list(b.position), list(b.size), b.yaw] for b in snap.boxes],
-        "plan": None if plan is None else {
-            "t": plan.t, "dt": plan.dt, "q": _arr(plan.q), "v": _arr(plan.v), "u": _arr(plan.u),
-            "base_path": _arr(plan.base_path), "ee_path": _arr(plan.ee_path), "task_errors": list(plan.task_errors),
-            "solve_ms": list(plan.solve_ms), "status": plan.status.value, "message": plan.message},
-        "base_path": _arr(snap.base_path),
-        "objects": None if snap.object_map is None else [
-            {"id": o.id, "pose": _arr(o.pose), "extent": _arr(o.extent), "status": o.status.value,
-             "posterior": [o.posterior.mu, o.posterior.sigma, o.posterior.alpha, o.posterior.beta],
-             "observations": o.observations} for o in snap.object_map.objects],
-        "removed_ids": [] if snap.object_map is None else list(snap.object_map.removed_ids),
-        "map_points": _arr(snap.map_points) if with_points else None,
-        "clouds": _arr(snap.clouds) if with_points else None,
-        "edf_slice": None if snap.edf_slice is None else {
-            "origin": _arr(snap.edf_slice.origin), "voxel": snap.edf_slice.voxel, "z_m": snap.edf_slice.z_m,
-            "values": _arr(snap.edf_slice.values)},
-        "progress": [{"index": p.index, "name": p.name, "kind": p.kind, "outcome": p.outcome.value,
-                      "elapsed_s": p.elapsed_s, "held_s": p.held_s, "position_error_m": p.position_error_m,
-                      "orientation_error_deg": p.orientation_error_deg, "message": p.message} for p in snap.progress],
-        "active_index": snap.active_index, "sequence_version": snap.sequence_version,
-        "min_distance_m": snap.min_distance_m, "collisions": snap.collisions, "timings_ms": snap.timings_ms,
-        "map_kind": snap.map_kind, "constraint": snap.constraint, "speed": snap.speed,
-    }
-
-
-def _np(x) -> np.ndarray | None:
-    return None if x is None else np.asarray(x, float)
-
-
-def snapshot_from_dict(d: dict) -> Snapshot:
-    p = d["plan"]
-    plan = None if p is None else Plan(
-        t=p["t"], dt=p["dt"], q=_np(p["q"]), v=_np(p["v"]), u=_np(p["u"]), base_path=_np(p["base_path"]),
-        ee_path=_np(p["ee_path"]), task_errors=tuple(p["task_errors"]), solve_ms=tuple(p["solve_ms"]),
-        status=PlanStatus(p["status"]), message=p["message"])
-    objects = None if d["objects"] is None else ObjectMapSnapshot(
-        t=d["t"], removed_ids=tuple(d["removed_ids"]),
-        objects=tuple(MappedObject(id=o["id"], pose=_np(o["pose"]), extent=_np(o["extent"]), points=np.zeros((0, 3)),
-                                   posterior=Posterior(*o["posterior"]), status=ObjectStatus(o["status"]),
-                                   observations=o["observations"]) for o in d["objects"]))
-    e = d["edf_slice"]
-    return Snapshot(
-        seq=d["seq"], wall_time=d["wall_time"], state=RobotState(d["t"], _np(d["q"]), _np(d["v"])),
-        run_state=RunState(d["run_state"]), status=d["status"],
-        boxes=tuple(Box(i, tuple(pos), tuple(size), yaw) for i, pos, size, yaw in d["boxes"]), plan=plan,
-        base_path=_np(d["base_path"]), object_map=objects, map_points=_np(d["map_points"]),
-        clouds=_np(d.get("clouds")),
-        edf_slice=None if e is None else EDFSlice(_np(e["origin"]), e["voxel"], e["z_m"], _np(e["values"])),
-        progress=tuple(SubtaskProgress(p["index"], p["name"], p["kind"], Outcome(p["outcome"]), p["elapsed_s"],
-                                       p["held_s"], p["position_error_m"], p["orientation_error_deg"], p["message"])
-                       for p in d["progress"]),
-        active_index=d["active_index"], sequence_version=d["sequence_version"], min_distance_m=d["min_distance_m"],
-        collisions=d["collisions"], timings_ms=d["timings_ms"], map_kind=d["map_kind"], constraint=d["constraint"],
-        speed=d["speed"])
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+GZIP_MAGIC = b"\x1f\x8b"
+NEVER_SPLIT = 1 << 62
+"""The mcap writer's own chunk limit, set out of reach: only the recorder closes chunks (between snapshots)."""
+_CLOSE = object()
 
 
 class Recorder:
-    """Subscriber that appends every snapshot to a recording file."""
+    """Subscriber that appends every snapshot to an MCAP recording (`runtime.subscribe(Recorder(path))`)."""
 
-    def __init__(self, path: Path, points_every: int = 10) -> None:
+    def __init__(self, path: Path, points_every: int = 10, depth_frames: bool = False, flush_every_s: float = 1.0,
+                 chunk_bytes: int = 1 << 20, queue_size: int = 64) -> None:
         self.path = Path(path)
-        self.points_every = points_every
+        self.points_every = max(1, points_every)
+        self.depth_frames = depth_frames
+        self.flush_every_s = flush_every_s
+        self.chunk_bytes = chunk_bytes
         self.count = 0
-        self._file = gzip.open(self.path, "wt", encoding="utf-8")  # noqa: SIM115 (open for the recorder's life)
-        self._file.write(json.dumps({"format": FORMAT}) + "\n")
+        """Snapshots written (after `close`, all that were recorded)."""
+        self.chunks = 0
+        self.error: BaseException | None = None
+        self._file = open(self.path, "wb")  # noqa: SIM115 (open for the recorder's life)
+        self._writer = Writer(self._file, chunk_size=NEVER_SPLIT, compression=CompressionType.ZSTD)
+        self._writer.start(profile="", library="perceptive-htmpc-studio")
+        self._writer.add_metadata("recording", {"format": FORMAT, "points_every": str(self.points_every),
+                                                "depth_frames": str(depth_frames).lower(),
+                                                "flush_every_s": str(flush_every_s)})
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[str, int] = {}
+        self._last_depth_t: dict[str, float] = {}
+        self._pending_bytes = 0
+        self._sync()
+        fsync_dir(self.path.parent)
+        self._queue: queue.Queue = queue.Queue(maxsize=queue_size)
+        self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
+        self._thread.start()
 
     def __call__(self, snap: Snapshot) -> None:
-        line = json.dumps(snapshot_to_dict(snap, with_points=self.count % self.points_every == 0), allow_nan=True)
-        self._file.write(line + "\n")
-        self.count += 1
+        while self._thread.is_alive():
+            try:
+                self._queue.put(snap, timeout=0.5)
+                return
+            except queue.Full:
+                continue
 
     def close(self) -> None:
+        """Write what is queued, the summary and the footer; the file is then a complete MCAP file."""
+        if self._thread.is_alive():
+            self._queue.put(_CLOSE)
+            self._thread.join()
+        if self._file.closed:
+            return
+        if self.error is None:
+            self._writer.finish()
+            self._sync()
         self._file.close()
 
+    # --- the writer thread -------------------------------------------------------------------------
 
-def read_recording(path: Path) -> Iterator[Snapshot]:
-    """Snapshots of a recording file, in order; a file of another kind raises ValueError."""
-    with gzip.open(Path(path), "rt", encoding="utf-8") as f:
-        header = json.loads(f.readline() or "{}")
-        if header.get("format") != FORMAT:
-            raise ValueError(f"{path} is not a studio recording (expected format {FORMAT})")
-        for line in f:
-            if line.strip():
-                yield snapshot_from_dict(json.loads(line))
+    def _run(self) -> None:
+        last_flush = time.monotonic()
+        try:
+            while True:
+                try:
+                    item = self._queue.get(timeout=self.flush_every_s / 4)
+                except queue.Empty:
+                    item = None
+                if item is _CLOSE:
+                    return
+                if item is not None:
+                    self._write(item)
+                due = time.monotonic() - last_flush >= self.flush_every_s
+                if self._pending_bytes and (due or self._pending_bytes >= self.chunk_bytes):
+                    self._flush()
+                    last_flush = time.monotonic()
+        except Exception as err:  # a full disk must not take the runtime down: log it, stop recording
+            self.error = err
+            log.exception("recording to %s failed; recording stopped", self.path)
+
+    def _channel(self, topic: str, schema_name: str) -> int:
+        if topic not in self._channels:
+            if schema_name not in self._schemas:
+                self._schemas[schema_name] = self._writer.register_schema(
+                    schema_name, "jsonschema", json.dumps(SCHEMAS[schema_name]).encode())
+            self._channels[topic] = self._writer.register_channel(topic, "json", self._schemas[schema_name])
+        return self._channels[topic]
+
+    def _write(self, snap: Snapshot) -> None:
+        messages = snapshot_messages(snap, with_points=self.count % self.points_every == 0)
+        topics = dict(FIXED_TOPICS)
+        if self.depth_frames:
+            for frame in snap.depth_frames:
+                if self._last_depth_t.get(frame.camera) != frame.t:
+                    self._last_depth_t[frame.camera] = frame.t
+                    messages[:0] = depth_messages(frame)
+                    topics.update(depth_topics(frame.camera))
+        log_time = int(snap.wall_time * 1e9)
+        for topic, message in messages:
+            data = json.dumps(message, allow_nan=False, separators=(",", ":")).encode()
+            self._writer.add_message(self._channel(topic, topics[topic]), log_time, data, log_time,
+                                     sequence=self.count)
+            self._pending_bytes += len(data)
+        self.count += 1
+
+    def _flush(self) -> None:
+        self._writer.flush()  # closes the chunk in progress and writes it
+        self._sync()
+        self._pending_bytes = 0
+        self.chunks += 1
+        log.debug("recording %s: chunk %d written, %d snapshots", self.path, self.chunks, self.count)
+
+    def _sync(self) -> None:
+        self._file.flush()
+        os.fsync(self._file.fileno())
+
+
+# --- reading ------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Recording(Sequence[Snapshot]):
+    """The snapshots of a recording (a sequence of them) and what reading it found."""
+
+    path: Path
+    snapshots: tuple[Snapshot, ...]
+    depth_frames: tuple[DepthFrame, ...] = ()
+    metadata: dict[str, str] = field(default_factory=dict)
+    closed: bool = True
+    """The file ends with its summary and footer (the recorder was closed)."""
+    file_bytes: int = 0
+    read_bytes: int = 0
+    """Bytes up to the end of the last complete record; the rest was dropped."""
+    tail_error: str = ""
+
+    @property
+    def dropped_bytes(self) -> int:
+        return self.file_bytes - self.read_bytes
+
+    @property
+    def report(self) -> str:
+        """One line on what was read and, for an interrupted recording, what was dropped."""
+        n = len(self.snapshots)
+        span = f" ({self.snapshots[0].state.t:.2f}–{self.snapshots[-1].state.t:.2f} s)" if n else ""
+        if self.closed:
+            return f"{self.path.name}: {n} snapshots{span}, complete"
+        tail = (f"dropped an unfinished chunk of {self.dropped_bytes} bytes ({self.tail_error})" if self.dropped_bytes
+                else "no unfinished chunk on disk")
+        flush = self.metadata.get("flush_every_s", "?")
+        return (f"{self.path.name}: {n} snapshots{span} read; the recording was interrupted (no summary at its end): "
+                f"{tail}; snapshots of the last {flush} s before it stopped were never written (dropped)")
+
+    def __len__(self) -> int:
+        return len(self.snapshots)
+
+    def __getitem__(self, index):
+        return self.snapshots[index]
+
+    def __iter__(self) -> Iterator[Snapshot]:
+        return iter(self.snapshots)
+
+
+class _Assembler:
+    """Collects messages by snapshot (MCAP sequence) and topic; a snapshot is whole with its status."""
+
+    def __init__(self) -> None:
+        self.channels: dict[int, McapChannel] = {}
+        self.pending: dict[int, dict[str, dict]] = {}
+        self.snapshots: list[Snapshot] = []
+        self.depth: list[DepthFrame] = []
+        self.metadata: dict[str, str] = {}
+
+    def add(self, record) -> None:
+        if isinstance(record, McapChannel):
+            self.channels[record.id] = record
+        elif isinstance(record, Metadata) and record.name == "recording":
+            self.metadata = dict(record.metadata)
+        elif isinstance(record, Message):
+            topic = self.channels[record.channel_id].topic
+            messages = self.pending.setdefault(record.sequence, {})
+            messages[topic] = json.loads(record.data)
+            if topic == STATUS_TOPIC:
+                self._complete(self.pending.pop(record.sequence))
+
+    def _complete(self, messages: dict[str, dict]) -> None:
+        self.snapshots.append(snapshot_from_messages(messages))
+        for topic, image in messages.items():
+            if topic.endswith("/depth") and topic.removesuffix("/depth") + "/info" in messages:
+                self.depth.append(depth_frame_from_messages(image, messages[topic.removesuffix("/depth") + "/info"]))
+
+
+def read_recording(path: Path) -> Recording:
+    """Every whole snapshot of an MCAP recording, in order, read without its summary section.
+
+    An interrupted recording (the process was killed) loads up to its last complete chunk; `report`
+    says what was dropped. A file that is not a studio recording raises ValueError.
+    """
+    path = Path(path)
+    with open(path, "rb") as f:
+        head = f.read(len(MCAP_MAGIC))
+        if head[:2] == GZIP_MAGIC:
+            raise ValueError(f"{path} is an old .jsonl.gz recording; this version reads MCAP recordings only "
+                             "(record again with --record FILE.mcap)")
+        if head != MCAP_MAGIC:
+            raise ValueError(f"{path} is not a studio recording (expected an MCAP file)")
+        f.seek(0)
+        parts = _Assembler()
+        closed, read_bytes, tail_error = False, len(MCAP_MAGIC), ""
+        records = StreamReader(f, emit_chunks=True, validate_crcs=True, record_size_limit=1 << 31).records
+        while True:
+            try:
+                record = next(records)
+                inner = breakup_chunk(record, validate_crc=True) if isinstance(record, Chunk) else [record]
+            except StopIteration:
+                break
+            except (McapError, ValueError, struct.error, EOFError, OSError) as err:  # the unfinished tail
+                tail_error = type(err).__name__ if not str(err) else f"{type(err).__name__}: {err}"
+                break
+            for item in inner:
+                if not isinstance(item, Schema):
+                    parts.add(item)
+            closed = isinstance(record, Footer)
+            read_bytes = f.tell()
+        closed = closed and not tail_error
+        if closed:
+            read_bytes = f.tell()
+        file_bytes = os.fstat(f.fileno()).st_size
+    if parts.metadata.get("format") != FORMAT:
+        raise ValueError(f"{path} is not a studio recording (expected format {FORMAT})")
+    recording = Recording(path, tuple(parts.snapshots), tuple(parts.depth), parts.metadata, closed, file_bytes,
+                          read_bytes, "" if closed else tail_error)
+    if not closed:
+        log.warning("%s", recording.report)
+    return recording

@@ -29,7 +29,8 @@ class ReplaySource:
     """Plays snapshots of a recording at their recorded sim-time pace (× speed)."""
 
     def __init__(self, path: Path) -> None:
-        self.snapshots: list[Snapshot] = list(read_recording(path))
+        self.recording = read_recording(path)
+        self.snapshots: list[Snapshot] = list(self.recording)
         if not self.snapshots:
             raise ValueError(f"{path} holds no snapshots")
         self.robot = RobotModel()

@@ -161,7 +161,8 @@ class Runtime:
                 sequence_version=self.sequence_version, min_distance_m=self.min_distance_m,
                 collisions=len(self.world.collisions) if self.world else 0, timings_ms=dict(self.timings_ms),
                 map_kind=self.config.map_kind, constraint=self.config.constraint, speed=self.config.speed,
-                messages=messages)
+                messages=messages, command=getattr(self, "last_command", None),
+                depth_frames=tuple(self.latest_frames.values()))
 
     def publish(self) -> Snapshot:
         """Send a snapshot, with the messages queued since the last publish, to every subscriber."""
@@ -357,6 +358,7 @@ class Runtime:
             qdot = np.zeros(9)
         qdot = self.robot.limits.clip_velocity(qdot)
         self.backend.command(qdot, t)
+        self.last_command = qdot
         return qdot
 
     def _observe(self) -> RobotState:

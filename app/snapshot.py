@@ -11,7 +11,7 @@ from enum import StrEnum
 import numpy as np
 
 from core.sim.scene import Box
-from core.types import ObjectMapSnapshot, Plan, RobotState
+from core.types import DepthFrame, ObjectMapSnapshot, Plan, RobotState
 from tasks.sequencer import SubtaskProgress
 
 
@@ -67,3 +67,7 @@ class Snapshot:
     speed: float = 1.0
     messages: tuple[str, ...] = ()
     """Errors and warnings raised since the previous snapshot (shown as notifications)."""
+    command: np.ndarray | None = None
+    """The last joint velocity command sent to the robot (9,), None before the first."""
+    depth_frames: tuple[DepthFrame, ...] = ()
+    """The newest depth frame of each camera (recordings keep them on request)."""

@@ -15,7 +15,7 @@ from tests.app.conftest import free_port
 def test_replay_drives_the_studio(tmp_path):
     rt = Runtime(RuntimeConfig(map_kind="object"), scene=Scene((Box("a", (2.0, 1.0, 0.3)),)),
                  sequence=TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=1.0, y=-0.5))]))
-    path = tmp_path / "run.jsonl.gz"
+    path = tmp_path / "run.mcap"
     rec = Recorder(path)
     rt.subscribe(rec)
     rt.run_lockstep(4.0, publish_every=1)

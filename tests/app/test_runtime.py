@@ -124,7 +124,7 @@ def test_live_run_control_and_subscribers():
 def test_recording_round_trip(tmp_path):
     rt = Runtime(RuntimeConfig(map_kind="object"), scene=Scene((Box("a", (2.0, 0.5, 0.3)),)),
                  sequence=TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=1.0, y=0.0))]))
-    path = tmp_path / "run.jsonl.gz"
+    path = tmp_path / "run.mcap"
     rec = Recorder(path, points_every=2)
     rt.subscribe(rec)
     rt.run_lockstep(3.0, publish_every=2)
@@ -135,11 +135,15 @@ def test_recording_round_trip(tmp_path):
     assert last.state.q.shape == (9,) and last.plan is not None and last.boxes[0].id == "a"
     assert last.object_map is not None and len(last.object_map.objects) >= 1
     assert [s.state.t for s in snaps] == sorted(s.state.t for s in snaps)
-    bad = tmp_path / "bad.jsonl.gz"
-    with gzip.open(bad, "wt") as f:
-        f.write(json.dumps({"format": "something else"}) + "\n")
+    bad = tmp_path / "bad.mcap"
+    bad.write_text("something else")
     with pytest.raises(ValueError, match="not a studio recording"):
-        list(read_recording(bad))
+        read_recording(bad)
+    old = tmp_path / "old.jsonl.gz"
+    with gzip.open(old, "wt") as f:
+        f.write(json.dumps({"format": "perceptive-htmpc-recording/1"}) + "\n")
+    with pytest.raises(ValueError, match="old .jsonl.gz recording"):
+        read_recording(old)
 
 
 @pytest.mark.slow
