@@ -179,7 +179,8 @@ def random_scene(seed: int, n_boxes: int = 8, area_m: float = 5.0, two_layers: b
     bounds = (-half - 2.0, half + 2.0, -half - 1.0, half + 1.0)
     for _ in range(max_tries):
         boxes: list[Box] = []
-        n_stacked = int(rng.integers(0, max(1, n_boxes // 3) + 1)) if two_layers else 0
+        # a stacked box needs one on the floor below it: at most n_boxes - 1 (same draws as before for n ≥ 2)
+        n_stacked = int(rng.integers(0, min(max(1, n_boxes // 3), n_boxes - 1) + 1)) if two_layers else 0
         n_floor = n_boxes - n_stacked
         for _ in range(200 * n_floor):
             if len(boxes) == n_floor:

@@ -30,6 +30,16 @@ def test_random_scene_follows_the_paper_and_is_seeded():
     assert any(b.position[2] > 0.5 for seed in range(5) for b in random_scene(seed).boxes)
 
 
+def test_random_scene_makes_any_count_from_one_box():
+    """Every box count the bridge accepts (1–16) is generated; a stacked box always stands on a floor box."""
+    for n in range(1, 17):
+        for seed in range(4):
+            boxes = random_scene(seed, n).boxes
+            assert len(boxes) == n
+            floor = {b.position[:2] for b in boxes if b.position[2] < 0.5}
+            assert all(b.position[:2] in floor for b in boxes if b.position[2] > 0.5)
+
+
 def test_aisle_is_a_closed_ring():
     s = aisle_scene()
     start = s.robot_start[:2]
