@@ -13,6 +13,11 @@ from pydantic import BaseModel, ValidationError
 
 M = TypeVar("M", bound=BaseModel)
 
+MAX_DEPTH = 50
+"""Deepest nesting of lists and mappings a file may have (our files need 6). PyYAML's composer and
+pydantic recurse once a level and hit Python's recursion limit near 300–500 levels, so deeper input is
+refused from the event stream (which PyYAML parses without recursion) before either sees it."""
+
 
 class FileFormatError(ValueError):
     """A task or scene file that does not follow its schema; `problems` lists (field, line, message)."""
@@ -58,11 +63,41 @@ def _locate(node: yaml.Node | None, loc: tuple, missing: bool = False) -> tuple[
     return line, tuple(clean)
 
 
+def _too_deep_at(text: str) -> int | None:
+    """1-based line where the nesting of `text` first exceeds `MAX_DEPTH` (aliases count as the depth of
+    what they repeat), else None."""
+    depth, anchors, open_anchors = 0, {}, []  # anchor → levels it spans; [anchor, start depth, deepest]
+    for event in yaml.parse(text, Loader=yaml.SafeLoader):
+        reached = depth
+        if isinstance(event, yaml.CollectionStartEvent):
+            depth += 1
+            reached = depth
+            if event.anchor:
+                open_anchors.append([event.anchor, depth - 1, depth])
+        elif isinstance(event, yaml.CollectionEndEvent):
+            if open_anchors and open_anchors[-1][1] == depth - 1:
+                anchor, start, deepest = open_anchors.pop()
+                anchors[anchor] = deepest - start
+            depth -= 1
+        elif isinstance(event, yaml.AliasEvent):
+            reached = depth + anchors.get(event.anchor, 0)
+        for frame in open_anchors:
+            frame[2] = max(frame[2], reached)
+        if reached > MAX_DEPTH:
+            return event.start_mark.line + 1
+    return None
+
+
 def load_yaml_model(text: str, model: type[M], source: str = "<string>") -> M:
     """Parse YAML `text` and validate it as `model`; raise `FileFormatError` naming field and line."""
     try:
+        too_deep = _too_deep_at(text)
+        if too_deep is not None:
+            raise FileFormatError(source, [("", too_deep, f"nested more than {MAX_DEPTH} levels deep")])
         root = yaml.compose(text, Loader=yaml.SafeLoader)
         data = yaml.safe_load(text)
+    except RecursionError as err:  # not expected after the depth check; refused all the same
+        raise FileFormatError(source, [("", None, "nested too deeply to read")]) from err
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         line = mark.line + 1 if mark is not None else None
@@ -71,6 +106,8 @@ def load_yaml_model(text: str, model: type[M], source: str = "<string>") -> M:
         raise FileFormatError(source, [("", 1, "the file is empty")])
     try:
         return model.model_validate(data)
+    except RecursionError as err:
+        raise FileFormatError(source, [("", None, "nested too deeply to validate")]) from err
     except ValidationError as err:
         problems = []
         for e in err.errors():
