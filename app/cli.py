@@ -102,7 +102,7 @@ def serve(args) -> int:
         bridge = BridgeServer(port=args.bridge_port, host=args.bridge_host)
         bridge.start()
         backend = bridge.robot
-        print(f"hardware bridge on {bridge.url} (token: {bridge.token})", flush=True)
+        print(f"hardware bridge on {bridge.url} ({bridge.token_info.describe()})", flush=True)
     runtime = Runtime(config, backend=backend)
     if bridge is not None:
         bridge.attach(runtime)

@@ -13,6 +13,7 @@ rendering and moving 2 × 300 kB frames a tenth of a second.
 from __future__ import annotations
 
 import math
+import os
 import secrets
 import signal
 import subprocess
@@ -24,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported)
+from app.bridge.auth import TOKEN_ENV
 from app.bridge.server import BridgeServer
 from bench.report import bench_args, percentile, write_result
 
@@ -33,7 +35,8 @@ COMMAND_PERIOD_S = 0.01
 
 def _start_driver(server: BridgeServer, cameras: str) -> subprocess.Popen:
     proc = subprocess.Popen([sys.executable, "-m", "app.bridge.sim_driver", "--url", server.robot_url,
-                             f"--token={server.token}", "--cameras", cameras, "--log-level", "WARNING"], cwd=ROOT)
+                             "--cameras", cameras, "--log-level", "WARNING"], cwd=ROOT,
+                            env={**os.environ, TOKEN_ENV: server.token})
     if not server.robot.wait_for_state(120.0):
         proc.kill()
         raise SystemExit("the sim driver sent no state within 120 s")

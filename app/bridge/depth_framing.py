@@ -8,8 +8,9 @@
     8 + N   P     pixels, row-major, little-endian: float32 metres ('float32_m', P = 4·W·H) or
                   uint16 millimetres ('uint16_mm', P = 2·W·H); 0 means no return
 
-A message whose length is not exactly 8 + N + P, whose header does not validate, or whose pixels are
-NaN, infinite or negative is refused with `FrameFormatError` (its text is sent back to the driver).
+A message whose length is not exactly 8 + N + P, whose header does not validate, whose K is not a
+pinhole matrix for this image, whose pose is not rigid, or whose pixels are NaN, infinite or negative is
+refused with `FrameFormatError` (its text is sent back to the driver).
 """
 
 from __future__ import annotations
@@ -76,6 +77,19 @@ def _check_rigid(T: np.ndarray) -> None:
         raise FrameFormatError("T_world_camera is not a rigid transform (rotation orthonormal, last row 0 0 0 1)")
 
 
+def _check_pinhole(K: np.ndarray, width: int, height: int) -> None:
+    """K = [[fx, s, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0 and the principal point on the image
+    (an all-zero or singular K would divide by zero when the map back-projects pixels)."""
+    fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
+    if not (np.allclose(K[2], [0.0, 0.0, 1.0], atol=1e-6) and abs(K[1, 0]) <= 1e-6):
+        raise FrameFormatError("K is not a pinhole matrix: its rows must be [fx, s, cx], [0, fy, cy], [0, 0, 1]")
+    if not (fx > 0.0 and fy > 0.0):
+        raise FrameFormatError(f"K has focal lengths fx = {fx:g}, fy = {fy:g} px; both must be positive")
+    if not (0.0 <= cx <= width and 0.0 <= cy <= height):
+        raise FrameFormatError(f"K's principal point ({cx:g}, {cy:g}) px lies outside the {width}×{height} image "
+                               "(intrinsics of another resolution?)")
+
+
 def _pixels(header: DepthFrameHeader, payload: memoryview) -> np.ndarray:
     dtype = PIXEL_DTYPES[header.encoding]
     expected = header.width * header.height * dtype.itemsize
@@ -101,6 +115,7 @@ def decode_depth_frame(data: bytes) -> DepthFrame:
     header = _header(text)
     T = np.array(header.T_world_camera, dtype=float)
     _check_rigid(T)
+    K = np.array(header.K, dtype=float)
+    _check_pinhole(K, header.width, header.height)
     depth = _pixels(header, payload)
-    return DepthFrame(t=header.t, camera=header.camera, depth=depth, K=np.array(header.K, dtype=float),
-                      T_world_camera=T, range_m=header.range_m)
+    return DepthFrame(t=header.t, camera=header.camera, depth=depth, K=K, T_world_camera=T, range_m=header.range_m)

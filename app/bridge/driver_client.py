@@ -1,6 +1,6 @@
 """`DriverClient`: a Python driver's end of the robot link (the sim driver uses it; so can a real one).
 
-    client = DriverClient("ws://127.0.0.1:8090/robot", token, name="my-robot")
+    client = DriverClient("ws://127.0.0.1:8090/robot", name="my-robot")   # token: HTMPC_BRIDGE_TOKEN or the file
     client.connect()                           # → the bridge's Welcome (401 → InvalidStatus)
     client.send_state(t, q, v)                 # 50–100 Hz
     client.send_frame(depth_frame)             # 5–10 Hz, binary (see depth_framing)
@@ -14,10 +14,12 @@ from __future__ import annotations
 
 import logging
 import time
+from pathlib import Path
 
 import numpy as np
 from websockets.sync.client import ClientConnection, connect
 
+from app.bridge.auth import read_token
 from app.bridge.depth_framing import encode_depth_frame
 from app.bridge.protocol import BRIDGE_TEXT, Ack, Command, ErrorMessage, Hello, OdometryIn, StateMessage, Welcome
 from core.types import DepthFrame, Odometry
@@ -28,9 +30,11 @@ log = logging.getLogger(__name__)
 class DriverClient:
     """Connects to the bridge, streams state and frames, receives (and acknowledges) commands."""
 
-    def __init__(self, url: str, token: str, name: str = "driver", clock=time.monotonic) -> None:
+    def __init__(self, url: str, token: str | None = None, name: str = "driver", clock=time.monotonic,
+                 token_file: Path | None = None) -> None:
+        """`token`: the bridge token, else `HTMPC_BRIDGE_TOKEN`, else `token_file` (default: the user's file)."""
         self.url, self.name = url, name
-        self._token = token
+        self._token = token or read_token(token_file)
         self._clock = clock
         self._ws: ClientConnection | None = None
         self.welcome: Welcome | None = None

@@ -3,7 +3,8 @@
 Robot link (`/robot` WebSocket, `docs/bridge.md`): JSON text messages `hello`, `state` and `ack` from
 the driver, `welcome`, `command` and `error` to it; depth frames travel as binary messages whose
 header is a `DepthFrameHeader` (layout in `depth_framing`). Every model forbids unknown fields and
-non-finite numbers, and fixes vector lengths, so a malformed message never reaches the runtime.
+non-finite numbers, fixes vector lengths and is strict (no booleans or strings for numbers, no 5.0 for
+an integer), so a malformed message never reaches the runtime.
 
 Operator API (`/api/...`): requests and responses of the routes in `app.bridge.routes`. Responses
 carry `None` where the runtime holds NaN (JSON has no NaN).
@@ -19,6 +20,11 @@ from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
 from core.types import NQ
 
 PROTOCOL_VERSION = 1
+STALE_AFTER_S = 0.15
+"""State older than this (by its arrival at the bridge) is stale: the bridge commands zero velocity. Below
+the 200 ms within which a dead driver must get zero: a driver whose connection drops without a close (a
+pulled cable, a frozen process, or a kill the server's loop sees late under load) is caught by age
+alone, and the last state arrived up to one state period (10–20 ms) before the loss."""
 STATE_LIMIT = 1e6
 """Largest magnitude accepted for a joint position or velocity (anything larger is a driver bug)."""
 
@@ -34,9 +40,9 @@ Name = Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.
 
 
 class Message(BaseModel):
-    """Base of every message: unknown fields and NaN/inf are errors; values are immutable."""
+    """Base of every message: unknown fields, NaN/inf and loose types are errors; values are immutable."""
 
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True, strict=True)
 
 
 # --- robot link: driver → bridge ------------------------------------------------------------------
@@ -47,7 +53,8 @@ class Hello(Message):
 
     type: Literal["hello"] = "hello"
     driver: Annotated[str, Field(min_length=1, max_length=100)]
-    protocol: Literal[1] = PROTOCOL_VERSION
+    protocol: Annotated[int, Field(ge=PROTOCOL_VERSION, le=PROTOCOL_VERSION)] = PROTOCOL_VERSION
+    """An integer (`Literal[1]` would let `true` and `1.0` through: they compare equal to 1)."""
 
 
 class OdometryIn(Message):
@@ -106,7 +113,7 @@ class Welcome(Message):
     state_rate_hz: tuple[float, float] = (50.0, 100.0)
     frame_rate_hz: tuple[float, float] = (5.0, 10.0)
     command_rate_hz: float = 100.0
-    stale_after_s: float = 0.2
+    stale_after_s: float = STALE_AFTER_S
 
 
 CommandReason = Literal["runtime", "not_running", "stale_state", "invalid_command", "shutdown"]

@@ -22,16 +22,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from app.bridge.protocol import Ack, Command, StateMessage
+from app.bridge.protocol import STALE_AFTER_S, Ack, Command, StateMessage
 from core.types import NQ, DepthFrame, Odometry, RobotState
 
 log = logging.getLogger(__name__)
 
-STALE_AFTER_S = 0.15
-"""State older than this (by its arrival here) is stale: the bridge commands zero velocity. Below the
-200 ms within which a dead driver must get zero: a driver whose connection drops without a close (a
-pulled cable, a frozen process, or a kill the server's loop sees late under load) is caught by age
-alone, and the last state arrived up to one state period (10–20 ms) before the loss."""
 PENDING_ACKS = 1024
 """Sent commands remembered for their acks (older ones are forgotten, never measured)."""
 

@@ -20,7 +20,7 @@ from pydantic import ValidationError
 
 from app.bridge.auth import Token
 from app.bridge.depth_framing import FrameFormatError, decode_depth_frame
-from app.bridge.protocol import DRIVER_TEXT, Ack, ErrorMessage, Hello, StateMessage, Welcome, validation_text
+from app.bridge.protocol import DRIVER_TEXT, Ack, ErrorMessage, ErrorOut, Hello, StateMessage, Welcome, validation_text
 from app.bridge.robot_link import LinkBusyError, MessageRejectedError, RobotLink
 
 log = logging.getLogger(__name__)
@@ -105,7 +105,8 @@ async def _deny(websocket: WebSocket, status_code: int, detail: str) -> None:
     """Refuse the handshake with an HTTP status (or, if the server cannot, close with 1008)."""
     headers = {"WWW-Authenticate": "Bearer"} if status_code == status.HTTP_401_UNAUTHORIZED else None
     try:
-        await websocket.send_denial_response(JSONResponse({"detail": detail}, status_code, headers=headers))
+        await websocket.send_denial_response(JSONResponse(ErrorOut(detail=detail).model_dump(), status_code,
+                                                          headers=headers))
     except RuntimeError:
         await websocket.close(code=status.WS_1008_POLICY_VIOLATION, reason=detail)
 

@@ -1,6 +1,6 @@
 """Reference driver: the MuJoCo robot in its own process, talking to the bridge over real sockets.
 
-    python -m app.bridge.sim_driver [--url ws://127.0.0.1:8090/robot] [--token T] [--scene FILE]
+    python -m app.bridge.sim_driver [--url ws://127.0.0.1:8090/robot] [--token-file FILE] [--scene FILE]
 
 It behaves as a robot's driver should: the simulation (`SimWorld` + `SimRobot`) advances in real time;
 state goes out at `--state-hz` (100), depth frames as the cameras render them (10 Hz each); every
@@ -8,7 +8,8 @@ command is acknowledged on receipt and applied at the next control cycle. Safety
 - no command for `--command-timeout` (0.25 s) → zero velocity until commands come back;
 - the link closes or fails (the bridge went away) → zero velocity, exit with status 3.
 Exit status 0 after `--duration` or SIGINT/SIGTERM; 2 when it cannot connect within `--connect-timeout`.
-The token comes from `--token`, else `HTMPC_BRIDGE_TOKEN`, else the user's token file.
+The token comes from `HTMPC_BRIDGE_TOKEN`, else `--token-file` (default: the user's token file), never
+from the command line, where every user could read it in `ps`.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ import numpy as np
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 
 import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported)
-from app.bridge.auth import read_token
+from app.bridge.auth import TOKEN_ENV, read_token
 from app.bridge.driver_client import DriverClient
 from app.bridge.protocol import Command
 from core.params import SimParams
@@ -166,7 +167,10 @@ def _connect(client: DriverClient, timeout_s: float) -> bool:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python -m app.bridge.sim_driver", description=__doc__.splitlines()[0])
     parser.add_argument("--url", default="ws://127.0.0.1:8090/robot", help="the bridge's robot link")
-    parser.add_argument("--token", default=None, help="bearer token (default: HTMPC_BRIDGE_TOKEN, else token file)")
+    parser.add_argument("--token-file", type=Path, default=None,
+                        help="file holding the bridge token, mode 0600 (default: HTMPC_BRIDGE_TOKEN, else "
+                             "~/.config/htmpc-studio/bridge_token)")
+    parser.add_argument("--token", help=argparse.SUPPRESS)
     parser.add_argument("--scene", type=Path, default=DEFAULT_SCENE, help="scene YAML the robot lives in")
     parser.add_argument("--state-hz", type=float, default=100.0, help="state rate (50–100 Hz)")
     parser.add_argument("--command-timeout", type=float, default=0.25, help="stop the robot after this long without "
@@ -181,11 +185,19 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.token is not None:
+        parser.error(f"--token is refused: every user can read a command line (ps). Set {TOKEN_ENV} or use "
+                     "--token-file")
+    try:
+        token = read_token(args.token_file)
+    except (OSError, ValueError) as err:
+        parser.error(str(err))
     logging.basicConfig(level=args.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     world = SimWorld(RobotModel(), SimParams(), load_scene(args.scene))
     robot = SimRobot(world, seed=args.seed, cameras=tuple(c for c in args.cameras.split(",") if c))
-    client = DriverClient(args.url, read_token(args.token), name="sim_driver", clock=lambda: world.time)
+    client = DriverClient(args.url, token, name="sim_driver", clock=lambda: world.time)
     if not _connect(client, args.connect_timeout):
         return EXIT_NO_CONNECTION
     print(f"sim driver: connected to {args.url}", flush=True)

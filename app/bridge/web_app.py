@@ -7,7 +7,7 @@ from fastapi import FastAPI
 from app.bridge.auth import Token
 from app.bridge.bridge_robot import BridgeRobot
 from app.bridge.errors import install_error_handlers
-from app.bridge.protocol import PROTOCOL_VERSION
+from app.bridge.protocol import PROTOCOL_VERSION, ErrorOut
 from app.bridge.robot_link import RobotLink
 from app.bridge.robot_socket import router as robot_router
 from app.bridge.routes import run, scene, sequence, status
@@ -21,7 +21,8 @@ the runtime through `/api`. Every request that changes anything needs `Authoriza
 
 def create_app(token: Token, link: RobotLink, robot: BridgeRobot) -> FastAPI:
     """The application; `app.state` holds the token, the link, the robot and the runtime attachment."""
-    app = FastAPI(title="HTMPC hardware bridge", version=f"{PROTOCOL_VERSION}.0", description=DESCRIPTION)
+    app = FastAPI(title="HTMPC hardware bridge", version=f"{PROTOCOL_VERSION}.0", description=DESCRIPTION,
+                  responses={500: {"model": ErrorOut, "description": "Internal error (logged by the studio)"}})
     app.state.token, app.state.link, app.state.robot = token, link, robot
     app.state.attachment = None
     install_error_handlers(app)

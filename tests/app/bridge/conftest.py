@@ -19,6 +19,7 @@ import pytest
 from websockets.sync.client import ClientConnection, connect
 
 import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported)
+from app.bridge.auth import TOKEN_ENV
 from app.bridge.server import BridgeServer
 
 ROOT = Path(__file__).parents[3]
@@ -74,10 +75,9 @@ class DriverProcess:
     """`python -m app.bridge.sim_driver` in its own process, its output collected by a thread."""
 
     def __init__(self, url: str, token: str, *extra: str) -> None:
-        env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-        self.proc = subprocess.Popen([sys.executable, "-m", "app.bridge.sim_driver", "--url", url, f"--token={token}",
-                                      *extra], cwd=ROOT, env=env, stdout=subprocess.PIPE,
-                                     stderr=subprocess.STDOUT, text=True)
+        env = {**os.environ, "PYTHONUNBUFFERED": "1", TOKEN_ENV: token}  # never on the command line
+        self.proc = subprocess.Popen([sys.executable, "-m", "app.bridge.sim_driver", "--url", url, *extra],
+                                     cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         self.lines: list[str] = []
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()

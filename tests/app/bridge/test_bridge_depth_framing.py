@@ -91,3 +91,27 @@ def test_a_pose_that_is_not_rigid_is_refused() -> None:
     data = _with_header(encode_depth_frame(_frame()), T_world_camera=(2 * np.eye(4)).tolist())
     with pytest.raises(FrameFormatError, match="rigid"):
         decode_depth_frame(data)
+
+
+@pytest.mark.parametrize(("K", "reason"), [
+    (np.zeros((3, 3)), "pinhole"),                                                   # all zero
+    ([[30.0, 0.0, 15.5], [0.0, 0.0, 11.5], [0.0, 0.0, 1.0]], "focal lengths"),       # singular: fy = 0
+    ([[-30.0, 0.0, 15.5], [0.0, 30.0, 11.5], [0.0, 0.0, 1.0]], "focal lengths"),
+    ([[30.0, 0.0, 15.5], [0.0, 30.0, 11.5], [0.0, 0.0, 0.0]], "pinhole"),            # last row not 0 0 1
+    ([[30.0, 0.0, 319.5], [0.0, 30.0, 239.5], [0.0, 0.0, 1.0]], "principal point"),  # K of a 640×480 image
+    ([[float("nan"), 0.0, 15.5], [0.0, 30.0, 11.5], [0.0, 0.0, 1.0]], "bad header: K"),
+    ([[float("inf"), 0.0, 15.5], [0.0, 30.0, 11.5], [0.0, 0.0, 1.0]], "bad header: K"),
+])
+def test_an_intrinsic_matrix_that_is_not_a_pinhole_of_this_image_is_refused(K, reason: str) -> None:
+    """The map back-projects with K⁻¹: a zero, singular, non-finite or foreign K never reaches it."""
+    data = _with_header(encode_depth_frame(_frame()), K=np.asarray(K).tolist())
+    with pytest.raises(FrameFormatError, match=reason):
+        decode_depth_frame(data)
+
+
+@pytest.mark.parametrize("changes", [{"width": 32.0}, {"width": True}, {"t": True}, {"range_m": "3"}])
+def test_numbers_in_the_header_are_typed_strictly(changes: dict) -> None:
+    """Integers are integers (32.0 is refused), and no boolean or string passes for a number."""
+    data = _with_header(encode_depth_frame(_frame()), **changes)
+    with pytest.raises(FrameFormatError, match=f"bad header: {next(iter(changes))}"):
+        decode_depth_frame(data)

@@ -102,3 +102,4 @@ def test_studio_on_the_bridge_completes_a_two_subtask_sequence(studio_and_driver
     assert progress["run_state"] == "finished" and outcomes == ["done", "done"], (progress, health,
                                                                                    studio.output[-3000:])
     assert health["counters"]["rejected"] == {} and health["counters"]["frames"] > 0
+    assert token not in studio.output and token[:4] in studio.output, "the token is printed masked, never whole"
