@@ -36,7 +36,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command")
     serve = sub.add_parser("serve", help="serve the studio (default)")
     _common(serve)
-    serve.add_argument("--host", default="127.0.0.1", help="address to serve on (default: this machine only)")
+    serve.add_argument("--host", default="127.0.0.1",
+                       help="address to serve on (default: this machine only; any other address, or --backend "
+                            "bridge, makes the page need the access link printed at start)")
     serve.add_argument("--port", type=int, default=8080)
     serve.add_argument("--speed", type=float, default=1.0, help="sim seconds per wall second")
     serve.add_argument("--backend", choices=("sim", "bridge"), default="sim",
@@ -106,7 +108,7 @@ def serve(args) -> int:
     runtime = Runtime(config, backend=backend)
     if bridge is not None:
         bridge.attach(runtime)
-    studio = Studio(runtime, host=args.host, port=args.port)
+    studio = Studio(runtime, host=args.host, port=args.port, require_token=bridge is not None)
     recorder = _recorder(args)
     if recorder is not None:
         runtime.subscribe(recorder)

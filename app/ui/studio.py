@@ -6,10 +6,9 @@ from __future__ import annotations
 import logging
 import threading
 
-import viser
-
 from app.runtime import Runtime
 from app.snapshot import Snapshot
+from app.ui.access import PageAccess, guarded_viser_server
 from app.ui.authoring_panel import AuthoringPanel
 from app.ui.map_view import MapView
 from app.ui.monitor_panel import MonitorPanel
@@ -29,9 +28,13 @@ LAYERS = {"objects": "Mapped objects", "voxels": "Map voxels", "edf": "EDF slice
 class Studio:
     """Binds one viser server to one runtime."""
 
-    def __init__(self, runtime: Runtime, host: str = "127.0.0.1", port: int = 8080) -> None:
+    def __init__(self, runtime: Runtime, host: str = "127.0.0.1", port: int = 8080,
+                 require_token: bool = False) -> None:
+        """`require_token`: the page needs the printed access link even on this machine (a real robot);
+        listening beyond this machine always needs it (`app.ui.access`)."""
         self.runtime = runtime
-        self.server = viser.ViserServer(host=host, port=port, label="Perceptive HTMPC Studio")
+        self.access = PageAccess.for_binding(host, require_token)
+        self.server = guarded_viser_server(self.access, host=host, port=port, label="Perceptive HTMPC Studio")
         self.server.gui.configure_theme(control_width="large", show_logo=False)
         self.server.scene.set_up_direction("+z")
         self.server.scene.add_grid("/floor", width=16.0, height=16.0, cell_size=0.5, section_size=1.0,
@@ -62,7 +65,9 @@ class Studio:
 
     @property
     def url(self) -> str:
-        return f"http://{self.server.get_host()}:{self.server.get_port()}"
+        """The page's address; with a token, the access link (it sets a cookie and drops the token)."""
+        base = f"http://{self.server.get_host()}:{self.server.get_port()}"
+        return base if self.access.token is None else f"{base}/?token={self.access.token}"
 
     def draw(self, snap: Snapshot) -> None:
         """Apply one snapshot to every view and panel; a drawing error is reported, not fatal."""
