@@ -1,5 +1,6 @@
 """schemathesis against the bridge's OpenAPI schema, served by real uvicorn: at least 500 generated
-requests (valid and invalid), none answered with a 5xx, every response as the schema documents it."""
+requests (valid and invalid; `--schemathesis-full`: at least 2,000), none answered with a 5xx, every
+response as the schema documents it."""
 
 from __future__ import annotations
 
@@ -24,6 +25,13 @@ from tests.app.bridge.conftest import auth
 CHECKS = [not_a_server_error, status_code_conformance, content_type_conformance, response_schema_conformance,
           negative_data_rejection, ignored_auth]
 MIN_CASES = 500
+FULL_CASES = 2000
+"""With `pytest --schemathesis-full`."""
+
+
+def fuzz_budget(config: pytest.Config) -> tuple[int, int]:
+    """(examples per operation and mode, least total cases) for this run."""
+    return (100, FULL_CASES) if config.getoption("--schemathesis-full") else (25, MIN_CASES)
 
 
 def fuzz(bridge: BridgeServer, examples_per_mode: int, checks: list = CHECKS) -> Counter:
@@ -49,8 +57,10 @@ def fuzz(bridge: BridgeServer, examples_per_mode: int, checks: list = CHECKS) ->
 
 
 @pytest.mark.slow
-def test_fuzzing_before_a_runtime_is_attached_finds_only_the_documented_503(bridge: BridgeServer) -> None:
+def test_fuzzing_before_a_runtime_is_attached_finds_only_the_documented_503(bridge: BridgeServer,
+                                                                             pytestconfig: pytest.Config) -> None:
     """A bridge whose runtime is not attached yet answers the runtime's routes with 503, as documented."""
-    statuses = fuzz(bridge, 25, [c for c in CHECKS if c is not not_a_server_error])
-    assert sum(statuses.values()) >= MIN_CASES, statuses
+    examples, least = fuzz_budget(pytestconfig)
+    statuses = fuzz(bridge, examples, [c for c in CHECKS if c is not not_a_server_error])
+    assert sum(statuses.values()) >= least, statuses
     assert not any(code >= 500 and code != 503 for code in statuses), statuses
