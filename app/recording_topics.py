@@ -93,7 +93,7 @@ SCHEMAS: dict[str, dict] = {
     "htmpc.RunStatus": _obj("run state, status line and measures of one snapshot", {
         "seq": _INT, "wall_time": _NUM, "t": _NUM, "run_state": _STR, "status": _STR, "min_distance_m": _NUM,
         "collisions": _INT, "timings_ms": {"type": "object"}, "map_kind": _STR, "constraint": _STR, "speed": _NUM,
-        "messages": {"type": "array", "items": _STR}}),
+        "messages": {"type": "array", "items": _STR}, "fault": {"type": ["string", "null"]}}),
     "htmpc.CameraInfo": _obj("depth camera: pinhole K (px), pose T_world_camera (OpenCV axes), range (m)",
                              {"t": _NUM, "camera": _STR, "K": _arr(2), "T_world_camera": _arr(2), "range_m": _NUM}),
     "foxglove.RawImage": _obj("foxglove.RawImage", {
@@ -192,7 +192,8 @@ def snapshot_messages(snap: Snapshot, with_points: bool) -> list[tuple[str, dict
         "seq": snap.seq, "wall_time": snap.wall_time, "t": t, "run_state": snap.run_state.value,
         "status": snap.status, "min_distance_m": _num(snap.min_distance_m), "collisions": snap.collisions,
         "timings_ms": {k: _num(v) for k, v in snap.timings_ms.items()}, "map_kind": snap.map_kind,
-        "constraint": snap.constraint, "speed": snap.speed, "messages": list(snap.messages)}))
+        "constraint": snap.constraint, "speed": snap.speed, "messages": list(snap.messages),
+        "fault": getattr(snap, "fault", None)}))
     return out
 
 
@@ -240,7 +241,7 @@ def snapshot_from_messages(messages: dict[str, dict]) -> Snapshot:
     run, state = messages[STATUS_TOPIC], messages["/robot/state"]
     edf, progress = messages.get("/map/edf_slice"), messages.get("/sequence/progress", {})
     command = messages.get("/robot/command")
-    return Snapshot(
+    return Snapshot(**_known(Snapshot, dict(
         seq=run["seq"], wall_time=run["wall_time"], state=RobotState(state["t"], _np(state["q"]), _np(state["v"])),
         run_state=RunState(run["run_state"]), status=run["status"],
         boxes=tuple(Box(b["id"], tuple(b["position"]), tuple(b["size"]), b["yaw"])
@@ -256,7 +257,7 @@ def snapshot_from_messages(messages: dict[str, dict]) -> Snapshot:
         min_distance_m=_nan(run["min_distance_m"]), collisions=run["collisions"],
         timings_ms={k: _nan(v) for k, v in run["timings_ms"].items()}, map_kind=run["map_kind"],
         constraint=run["constraint"], speed=run["speed"],
-        command=None if command is None else _np(command["qdot"]))
+        command=None if command is None else _np(command["qdot"]), fault=run.get("fault"))))
 
 
 def depth_frame_from_messages(image: dict, info: dict) -> DepthFrame:

@@ -6,8 +6,10 @@ part of the state when the driver sends none); `command(qdot, t)` sends a veloci
 
 A command goes out as the runtime computed it only while everything is sound; otherwise zero velocity
 goes out, with the reason: the command itself is not 9 finite numbers (`invalid_command`), the state is
-older than the link's `stale_after_s` (`stale_state`), or the motion gate is shut (`not_running`: the
-server shuts it unless the attached runtime is running; on hardware a paused run must hold still).
+older than the link's `stale_after_s` (`stale_state`), or the motion gate is shut: the server shuts it
+unless the attached runtime is running (`emergency_stop` after an emergency stop, else `not_running`:
+idle, paused, stopped, finished, failed; on hardware such a run must hold still). Zero commands of a
+run that is not running carry that reason too, never `runtime`.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from app.bridge.protocol import STATE_LIMIT
+from app.bridge.protocol import STATE_LIMIT, CommandReason
 from app.bridge.robot_link import RobotLink, SentCommand
 from core.types import NQ, Observation, Odometry, RobotState
 
@@ -31,6 +33,8 @@ class BridgeRobot:
     def __init__(self, link: RobotLink) -> None:
         self.link = link
         self.motion_allowed: Callable[[], bool] = lambda: True
+        self.halt_reason: Callable[[], CommandReason] = lambda: "not_running"
+        """Why the runtime's commands may not move the robot while `motion_allowed()` is False."""
         self.rejected_commands = 0
         self._placeholder = RobotState(0.0, np.zeros(NQ), np.zeros(NQ))
 
@@ -64,7 +68,7 @@ class BridgeRobot:
             t = t if np.isfinite(t) else self.link.latest_t()
         return self.link.send_command(qdot, float(t), reason)
 
-    def _veto(self, qdot: np.ndarray, t: float) -> str:
+    def _veto(self, qdot: np.ndarray, t: float) -> CommandReason:
         if (qdot.shape != (NQ,) or not np.all(np.isfinite(qdot)) or np.any(np.abs(qdot) > STATE_LIMIT)
                 or not np.isfinite(t)):
             self.rejected_commands += 1
@@ -72,8 +76,8 @@ class BridgeRobot:
             return "invalid_command"
         if self.link.is_stale():
             return "stale_state"
-        if np.any(qdot) and not self.motion_allowed():
-            return "not_running"
+        if not self.motion_allowed():
+            return self.halt_reason()
         return "runtime"
 
     def stop(self) -> None:

@@ -116,7 +116,9 @@ class Welcome(Message):
     stale_after_s: float = STALE_AFTER_S
 
 
-CommandReason = Literal["runtime", "not_running", "stale_state", "invalid_command", "shutdown"]
+CommandReason = Literal["runtime", "not_running", "emergency_stop", "stale_state", "invalid_command", "shutdown"]
+"""Why a command was sent: `runtime` is the controller's command (it may be zero); every other reason
+comes with zero velocity. docs/bridge.md lists them; a test checks that list against this one."""
 
 
 class Command(Message):

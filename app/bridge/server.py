@@ -21,6 +21,7 @@ import uvicorn
 from app.bridge.attachment import RuntimeAttachment
 from app.bridge.auth import resolve_token
 from app.bridge.bridge_robot import BridgeRobot
+from app.bridge.protocol import CommandReason
 from app.bridge.robot_link import STALE_AFTER_S, RobotLink
 from app.bridge.watchdog import StaleStateWatchdog
 from app.bridge.web_app import create_app
@@ -41,6 +42,11 @@ class _DenialLogFilter(logging.Filter):
 
 
 logging.getLogger("uvicorn.error").addFilter(_DenialLogFilter())
+
+
+def halt_reason(run_state: RunState) -> CommandReason:
+    """The reason sent with zero velocity when the run state does not let the robot move."""
+    return "emergency_stop" if run_state == RunState.ESTOP else "not_running"
 
 
 class BridgeServer:
@@ -100,6 +106,7 @@ class BridgeServer:
         self.app.state.attachment = RuntimeAttachment(runtime)
         if runtime.backend is self.robot:
             self.robot.motion_allowed = lambda: runtime.run_state == RunState.RUNNING
+            self.robot.halt_reason = lambda: halt_reason(runtime.run_state)
 
     @property
     def attachment(self) -> RuntimeAttachment | None:

@@ -3,12 +3,16 @@ scene edits on the embedded simulation; refusals when the runtime drives a robot
 
 from __future__ import annotations
 
+import json
+
 import httpx
+import numpy as np
 import pytest
 
 from app.bridge.server import BridgeServer
 from tests.app.bridge.conftest import BAD_SEQUENCE as BAD
 from tests.app.bridge.conftest import EXAMPLE_SEQUENCE as EXAMPLE
+from tests.app.bridge.conftest import StateStreamer, wait_until
 
 
 def test_status_routes_report_the_runtime(api: httpx.Client, sim_runtime) -> None:
@@ -79,3 +83,28 @@ def test_start_needs_fresh_robot_state(api: httpx.Client, bridge: BridgeServer, 
 def test_start_with_a_driver_connected(api: httpx.Client, bridge: BridgeServer, bridge_runtime, start_driver) -> None:
     start_driver()
     assert api.post("/api/run/start").json()["run_state"] == "running"
+
+
+def _next_command(ws) -> dict:
+    while True:
+        msg = json.loads(ws.recv(timeout=5))
+        if msg["type"] == "command":
+            return msg
+
+
+def test_zero_commands_say_why_the_robot_may_not_move(bridge: BridgeServer, bridge_runtime, raw_driver) -> None:
+    """Idle, paused, stopped runs send `not_running`, an emergency stop `emergency_stop`; `runtime` only while
+    the run runs (the controller's command, zero or not): a driver never has to guess."""
+    robot = bridge.robot
+    steps = [(lambda: None, 0.0), (bridge_runtime.start, 0.0), (lambda: None, 0.1), (bridge_runtime.pause, 0.1),
+             (bridge_runtime.emergency_stop, 0.0)]
+    sent, on_the_wire = [], []
+    with StateStreamer(raw_driver):
+        assert wait_until(lambda: not bridge.link.is_stale())
+        for change, speed in steps:  # one at a time: commands are latest-wins, a newer one drops an unsent one
+            change()
+            sent.append(robot.send(np.full(9, speed), 1.0).reason)
+            on_the_wire.append(_next_command(raw_driver))
+    assert sent == ["not_running", "runtime", "runtime", "not_running", "emergency_stop"]
+    assert [c["reason"] for c in on_the_wire] == sent
+    assert [c["qdot"] != [0.0] * 9 for c in on_the_wire] == [False, False, True, False, False]
