@@ -62,5 +62,6 @@ def test_fuzzing_before_a_runtime_is_attached_finds_only_the_documented_503(brid
     """A bridge whose runtime is not attached yet answers the runtime's routes with 503, as documented."""
     examples, least = fuzz_budget(pytestconfig)
     statuses = fuzz(bridge, examples, [c for c in CHECKS if c is not not_a_server_error])
+    print(f"\n{sum(statuses.values())} cases, by status: {dict(sorted(statuses.items()))}")
     assert sum(statuses.values()) >= least, statuses
     assert not any(code >= 500 and code != 503 for code in statuses), statuses

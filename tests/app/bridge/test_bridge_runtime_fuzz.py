@@ -15,6 +15,7 @@ def test_fuzzing_a_simulating_runtime_finds_no_server_error(bridge: BridgeServer
                                                             pytestconfig: pytest.Config) -> None:
     examples, least = fuzz_budget(pytestconfig)
     statuses = fuzz(bridge, examples)
+    print(f"\n{sum(statuses.values())} cases, by status: {dict(sorted(statuses.items()))}")
     assert sum(statuses.values()) >= least, statuses
     assert not any(code >= 500 for code in statuses), statuses
     assert sum(n for code, n in statuses.items() if 200 <= code < 300) >= 100, statuses
