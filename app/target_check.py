@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from core.params import HTMPCParams
 from core.types import ObjectStatus
 from tasks.schema import TaskSequence
 from tasks.validation import Obstacle, RobotEnvelope, TargetFinding, require_valid
@@ -15,11 +16,11 @@ def scene_obstacles(runtime) -> tuple[Obstacle, ...]:
     world = getattr(runtime, "world", None)
     if world is not None:
         return tuple(Obstacle(b.id, b.position, b.size, b.yaw) for b in world.boxes())
-    mapper = getattr(runtime, "map", None)
-    if mapper is None or not hasattr(mapper, "snapshot"):
+    object_map = runtime.snapshot().object_map  # the runtime's snapshot reads its map under the map's lock
+    if object_map is None:
         return ()
     out = []
-    for obj in mapper.snapshot().objects:
+    for obj in object_map.objects:
         if obj.status != ObjectStatus.ACTIVE:
             continue
         R = obj.pose[:3, :3]
@@ -30,7 +31,8 @@ def scene_obstacles(runtime) -> tuple[Obstacle, ...]:
 
 def envelope_of(runtime) -> RobotEnvelope:
     """The robot's envelope with the delta_safe the runtime's controller keeps."""
-    return RobotEnvelope.of(runtime.robot, runtime.config.htmpc.delta_safe_m)
+    htmpc = getattr(runtime.config, "htmpc", None) or HTMPCParams()
+    return RobotEnvelope.of(runtime.robot, htmpc.delta_safe_m)
 
 
 def check_targets(runtime, sequence: TaskSequence, *, scene_may_change: bool = False,
