@@ -114,6 +114,7 @@ def serve(args) -> int:
 
 
 def run_headless(args) -> int:
+    from app.problems import summary_line
     from app.report import write_report
     from app.runtime import Runtime, RuntimeConfig
 
@@ -131,8 +132,9 @@ def run_headless(args) -> int:
             "map": args.map_kind, "constraint": args.constraint, "outcome": runtime.run_state.value,
             "status": runtime.status_line(), "subtasks_done": sum(p.outcome.value == "done"
                                                                    for p in runtime.sequencer.progress)}
-    summary = write_report(out, runtime.log, runtime.world.obstacles(), meta)
+    summary = write_report(out, runtime.log, runtime.world.obstacles(), meta, runtime.problems)
     print(f"{runtime.run_state.value}: {runtime.status_line()}")
+    print(f"problems: {summary_line(runtime.problems.counts())}")
     for key, value in summary.items():
         print(f"  {key}: {value:.3f}" if isinstance(value, float) else f"  {key}: {value}")
     print(f"report written to {out}")

@@ -25,6 +25,7 @@ import numpy as np
 
 import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported)
 from app.components import make_controller, make_map
+from app.problems import ProblemKind, ProblemLog
 from app.run_log import RunLog
 from app.snapshot import EDFSlice, RunState, Snapshot
 from core.params import HTMPCParams, MappingParams, SequencerParams, SimParams
@@ -95,6 +96,7 @@ class Runtime:
         self.sequence_version = 0
         self.run_state = RunState.IDLE
         self.log = RunLog()
+        self.problems = ProblemLog(1e3 / self.config.htmpc.control_rate_hz)
         self._subscribers: list[Callable[[Snapshot], None]] = []
         self._messages: deque[str] = deque(maxlen=20)
         self._threads: list[threading.Thread] = []
@@ -161,7 +163,7 @@ class Runtime:
                 sequence_version=self.sequence_version, min_distance_m=self.min_distance_m,
                 collisions=len(self.world.collisions) if self.world else 0, timings_ms=dict(self.timings_ms),
                 map_kind=self.config.map_kind, constraint=self.config.constraint, speed=self.config.speed,
-                messages=messages)
+                messages=messages, problems=self.problems.counts())
 
     def publish(self) -> Snapshot:
         """Send a snapshot, with the messages queued since the last publish, to every subscriber."""
@@ -243,6 +245,7 @@ class Runtime:
             self._frames.clear()
             self._pending_plans.clear()
             self.log = RunLog()
+            self.problems = ProblemLog(1e3 / self.config.htmpc.control_rate_hz)
             with self._map_lock:
                 self._build_parts()
 
@@ -340,6 +343,7 @@ class Runtime:
             t_solve = time.perf_counter()
             plan = self.controller.solve(state, refs, edf)
             self.timings_ms["solve"] = (time.perf_counter() - t_solve) * 1e3
+            self.problems.observe_plan(plan, state.t, self.timings_ms["solve"])
             self._pending_plans.append((state.t + self.config.actuation_delay_s, plan))
             self.last_control_wall = time.time()
         self.timings_ms["control"] = (time.perf_counter() - t0) * 1e3
@@ -353,6 +357,7 @@ class Runtime:
             moving = self.run_state == RunState.RUNNING or (self.run_state == RunState.PAUSED and self.world)
             qdot = self.plan.velocity_at(t) if (moving and self.plan is not None) else np.zeros(9)
         if not np.all(np.isfinite(qdot)):
+            self.problems.record(ProblemKind.FAULT, t, "non-finite command from the plan")
             self.notify("non-finite command from the plan: stopping")
             qdot = np.zeros(9)
         qdot = self.robot.limits.clip_velocity(qdot)
@@ -434,6 +439,7 @@ class Runtime:
                 loop()
             except Exception as err:
                 log.exception("%s loop crashed", threading.current_thread().name)
+                self.problems.record(ProblemKind.FAULT, self.time, f"{threading.current_thread().name} loop: {err}")
                 self.emergency_stop()
                 self.notify(f"{threading.current_thread().name} loop crashed: {err}")
         return run
@@ -498,6 +504,8 @@ class Runtime:
             if self.time + 1e-9 < next_t:
                 time.sleep(0.002)
                 continue
+            if self.time - next_t > period and self.run_state == RunState.RUNNING:
+                self.problems.record(ProblemKind.WATCHDOG, self.time, f"control step {self.time - next_t:.2f} s late")
             next_t = self.time + period
             self._control(self.state)
             self._measure(getattr(self, "_last_qdot", np.zeros(9)))

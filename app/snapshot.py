@@ -10,6 +10,7 @@ from enum import StrEnum
 
 import numpy as np
 
+from app.problems import ProblemCount
 from core.sim.scene import Box
 from core.types import ObjectMapSnapshot, Plan, RobotState
 from tasks.sequencer import SubtaskProgress
@@ -67,3 +68,5 @@ class Snapshot:
     speed: float = 1.0
     messages: tuple[str, ...] = ()
     """Errors and warnings raised since the previous snapshot (shown as notifications)."""
+    problems: tuple[ProblemCount, ...] = ()
+    """Problems of the run so far, counted by kind (`app.problems`)."""
