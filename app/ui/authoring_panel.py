@@ -74,7 +74,7 @@ class AuthoringPanel:
         self.add_buttons = server.gui.add_button_group("Add at target", ("Base goal", "Waypoint", "EE target"))
         self.use_yaw = server.gui.add_checkbox("Base goal with heading", True)
         self.scene_may_change = server.gui.add_checkbox(
-            "Boxes will move first", False,
+            "Scene changes before run", False,
             hint="Accept targets too close to a box today with a warning (you will move the box before they run)")
         self.select = server.gui.add_dropdown("Subtask", (NONE,), initial_value=NONE)
         self.name = server.gui.add_text("Name", "")

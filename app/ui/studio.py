@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import logging
 import threading
+from dataclasses import dataclass
 
 import viser
 
@@ -15,6 +16,8 @@ from app.ui.map_view import MapView
 from app.ui.monitor_panel import MonitorPanel
 from app.ui.notify import notify_all
 from app.ui.plan_view import PlanView
+from app.ui.problems_panel import ProblemsPanel
+from app.ui.progress_panel import ProgressPanel
 from app.ui.robot_view import RobotView
 from app.ui.run_panel import RunPanel
 from app.ui.scene_panel import ScenePanel
@@ -26,22 +29,45 @@ LAYERS = {"objects": "Mapped objects", "voxels": "Map voxels", "edf": "EDF slice
           "frusta": "Camera frusta", "clouds": "Depth point clouds"}
 
 
+@dataclass(frozen=True)
+class ViewSettings:
+    """How much the browser has to draw. The defaults suit software WebGL (a browser without a GPU, as
+    Debian's chromium in a VM): `python -m bench.studio_fps` measures the frame rate against the detailed view."""
+
+    robot_meshes: str = "collision"
+    """'collision' (the UR10's 5.8k-triangle meshes) or 'visual' (116k triangles)."""
+    shadows: bool = False
+    environment_map: bool = False
+    """viser's image-based lighting ('warehouse'); without it the default lights alone."""
+
+
+DETAILED_VIEW = ViewSettings(robot_meshes="visual", shadows=True, environment_map=True)
+
+
 class Studio:
     """Binds one viser server to one runtime."""
 
-    def __init__(self, runtime: Runtime, host: str = "127.0.0.1", port: int = 8080) -> None:
+    def __init__(self, runtime: Runtime, host: str = "127.0.0.1", port: int = 8080,
+                 view: ViewSettings = ViewSettings()) -> None:
         self.runtime = runtime
         self.server = viser.ViserServer(host=host, port=port, label="Perceptive HTMPC Studio")
         self.server.gui.configure_theme(control_width="large", show_logo=False)
         self.server.scene.set_up_direction("+z")
+        self.server.scene.configure_default_lights(cast_shadow=view.shadows)
+        if not view.environment_map:  # a hemisphere light instead: the sides of boxes stay readable, at no cost
+            self.server.scene.configure_environment_map(None)
+            self.server.scene.add_light_hemisphere("/lights/sky", sky_color=(255, 255, 255),
+                                                   ground_color=(120, 110, 100), intensity=1.5)
         self.server.scene.add_grid("/floor", width=16.0, height=16.0, cell_size=0.5, section_size=1.0,
                                    position=(0.0, 0.0, 0.001))
         self.server.initial_camera.position = (-2.5, -4.5, 4.0)
         self.server.initial_camera.look_at = (1.5, 0.0, 0.3)
         self._draw_lock = threading.Lock()
-        self.robot_view = RobotView(self.server, runtime.robot)
+        self.robot_view = RobotView(self.server, runtime.robot, meshes=view.robot_meshes)
         self.map_view = MapView(self.server, runtime.robot)
         self.plan_view = PlanView(self.server)
+        self.progress = ProgressPanel(self.server)
+        self.problems = ProblemsPanel(self.server)
         self.monitor = MonitorPanel(self.server)
         self.run_panel = RunPanel(self.server, runtime)
         tabs = self.server.gui.add_tab_group()
@@ -51,6 +77,8 @@ class Studio:
             self.scene_panel = ScenePanel(self.server, runtime)
         with tabs.add_tab("Monitor"):
             self.monitor.build_plots()
+        with tabs.add_tab("Problems"):
+            self.problems.build_table()
         with tabs.add_tab("View"):
             for key, label in LAYERS.items():
                 box = self.server.gui.add_checkbox(label, self.map_view.show[key])
@@ -74,12 +102,15 @@ class Studio:
                 self.scene_view.update(snap.boxes)
                 self.map_view.update(snap)
                 self.plan_view.update(snap)
+            self.progress.update(snap)
+            self.problems.update(snap)
             self.monitor.update(snap)
             self.run_panel.update(snap)
             self.scene_panel.update(snap)
             self.authoring.update(snap)
             for message in snap.messages:
-                notify_all(self.server, "Runtime", message)
+                title = "Emergency stop" if message.startswith("emergency stop") else "Runtime"
+                notify_all(self.server, title, message)
             self.draws += 1
         except Exception:
             log.exception("drawing a snapshot failed")

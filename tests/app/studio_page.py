@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import re
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -28,7 +29,7 @@ def live_studio(runtime: Runtime) -> Iterator[Studio]:
 
 def row(page, label: str):
     """The GUI row whose label is `label` (exact text)."""
-    label_el = page.locator("label", has_text=label).first
+    label_el = page.locator("label").filter(has_text=re.compile(f"^{re.escape(label)}$")).first
     label_el.wait_for(timeout=30_000)
     return label_el.locator("xpath=ancestor::p/../..")
 
