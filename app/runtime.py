@@ -28,7 +28,7 @@ from app.components import make_controller, make_map
 from app.problems import ProblemKind, ProblemLog
 from app.run_log import RunLog
 from app.snapshot import EDFSlice, RunState, Snapshot
-from core.params import HTMPCParams, MappingParams, SequencerParams, SimParams
+from core.params import HTMPCParams, MappingParams, RobotParams, SequencerParams, SimParams
 from core.robot.model import RobotModel
 from core.sim.scene import Box, Scene, load_scene, random_scene
 from core.sim.sim_robot import SimRobot
@@ -65,6 +65,7 @@ class RuntimeConfig:
     mapping: MappingParams = field(default_factory=MappingParams)
     sequencer: SequencerParams = field(default_factory=SequencerParams)
     sim: SimParams = field(default_factory=SimParams)
+    robot: RobotParams = field(default_factory=RobotParams)
 
     def __post_init__(self) -> None:
         if self.map_kind not in MAP_KINDS:
@@ -81,7 +82,7 @@ class Runtime:
     def __init__(self, config: RuntimeConfig | None = None, scene: Scene | None = None,
                  sequence: TaskSequence | None = None, backend: RobotBackend | None = None) -> None:
         self.config = config or RuntimeConfig()
-        self.robot = RobotModel()
+        self.robot = RobotModel(self.config.robot)
         self._lock = threading.RLock()
         self._map_lock = threading.Lock()
         self._scene = scene or (load_scene(self.config.scene) if self.config.scene else Scene())
