@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
-from dataclasses import asdict as dt_asdict
 import logging
 import signal
 import sys
 import threading
+from dataclasses import asdict as dt_asdict
 from pathlib import Path
 
 from app.runtime import DEFAULT_SCENE, DEFAULT_SEQUENCE, MAP_KINDS, ROOT
