@@ -70,7 +70,23 @@ class MonitorPanel:
                                                 title="E[v] per object", scales=scales, aspect=2.0,
                                           legend=LEGEND)
 
+    def load_history(self, snapshots: list[Snapshot]) -> None:
+        """Start the plots over from these snapshots (a replay jumped in time); the next update draws them."""
+        self.rows.clear()
+        self._obj_ids.clear()
+        for snap in snapshots[-HISTORY:]:
+            self._add_row(snap)
+        self._last_plot = 0.0
+
     def update(self, snap: Snapshot) -> None:
+        self._add_row(snap)
+        now = time.monotonic()
+        if self.solve is None or now - self._last_plot < PLOT_PERIOD_S:
+            return
+        self._last_plot = now
+        self._plot()
+
+    def _add_row(self, snap: Snapshot) -> None:
         plan = snap.plan
         errs = list(plan.task_errors) if plan is not None else []
         objects = [o for o in (snap.object_map.objects if snap.object_map else ())][:MAX_OBJECTS]
@@ -81,10 +97,8 @@ class MonitorPanel:
         self.rows.append((snap.state.t, snap.timings_ms.get("solve", np.nan), snap.timings_ms.get("mapping", np.nan),
                           errs[0] if errs else np.nan, errs[1] if len(errs) > 1 else np.nan, snap.min_distance_m,
                           [ev.get(i, np.nan) for i in self._obj_ids] + [np.nan] * (MAX_OBJECTS - len(self._obj_ids))))
-        now = time.monotonic()
-        if self.solve is None or now - self._last_plot < PLOT_PERIOD_S:
-            return
-        self._last_plot = now
+
+    def _plot(self) -> None:
         cols = list(zip(*self.rows, strict=True))
         t = np.asarray(cols[0], float)
         self.solve.data = (t, _finite(cols[1]), _finite(cols[2]))

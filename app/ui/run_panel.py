@@ -32,6 +32,11 @@ class RunPanel:
         self.constraint.on_update(
             guarded(server, "constraint kind")(lambda _: runtime.configure(constraint=self.constraint.value)))
 
+    def hide_controls(self) -> None:
+        """A replay has its own playback controls (`TimelinePanel`); map and constraint are the recorded ones."""
+        for handle in (self.buttons, self.speed, self.map_kind, self.constraint):
+            handle.visible = False
+
     def _estop(self) -> None:
         """The runtime says so to every browser (it also stops from the bridge): one notice, not two."""
         self.runtime.emergency_stop()

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import viser
 
+from app.replay import ReplaySource
 from app.runtime import Runtime
 from app.snapshot import Snapshot
 from app.ui.authoring_panel import AuthoringPanel
@@ -22,6 +23,7 @@ from app.ui.robot_view import RobotView
 from app.ui.run_panel import RunPanel
 from app.ui.scene_panel import ScenePanel
 from app.ui.scene_view import SceneView
+from app.ui.timeline_panel import TimelinePanel
 
 log = logging.getLogger(__name__)
 
@@ -63,6 +65,9 @@ class Studio:
         self.server.initial_camera.position = (-2.5, -4.5, 4.0)
         self.server.initial_camera.look_at = (1.5, 0.0, 0.3)
         self._draw_lock = threading.Lock()
+        self._pending_lock = threading.Lock()
+        self._latest: Snapshot | None = None
+        self._messages: list[str] = []
         self.robot_view = RobotView(self.server, runtime.robot, meshes=view.robot_meshes)
         self.map_view = MapView(self.server, runtime.robot)
         self.plan_view = PlanView(self.server)
@@ -70,6 +75,10 @@ class Studio:
         self.problems = ProblemsPanel(self.server)
         self.monitor = MonitorPanel(self.server)
         self.run_panel = RunPanel(self.server, runtime)
+        self.timeline = None
+        if isinstance(runtime, ReplaySource):
+            self.timeline = TimelinePanel(self.server, runtime, self.monitor)
+            self.run_panel.hide_controls()
         tabs = self.server.gui.add_tab_group()
         with tabs.add_tab("Sequence"):
             self.authoring = AuthoringPanel(self.server, runtime)
@@ -93,9 +102,24 @@ class Studio:
         return f"http://{self.server.get_host()}:{self.server.get_port()}"
 
     def draw(self, snap: Snapshot) -> None:
-        """Apply one snapshot to every view and panel; a drawing error is reported, not fatal."""
-        if not self._draw_lock.acquire(blocking=False):
-            return  # the previous snapshot is still being sent: skip this one
+        """Apply a snapshot to every view and panel; a drawing error is reported, not fatal.
+
+        While a draw is under way, newer snapshots wait as one (the latest, with every message since): the last
+        snapshot is always drawn (a paused replay's seek, the final state) and no notice is lost."""
+        with self._pending_lock:
+            self._messages.extend(snap.messages)
+            self._latest = snap
+        while self._latest is not None and self._draw_lock.acquire(blocking=False):
+            try:
+                with self._pending_lock:
+                    snap, self._latest = self._latest, None
+                    messages, self._messages = self._messages, []
+                if snap is not None:
+                    self._draw_one(snap, messages)
+            finally:
+                self._draw_lock.release()
+
+    def _draw_one(self, snap: Snapshot, messages: list[str]) -> None:
         try:
             with self.server.atomic():
                 self.robot_view.update(snap.state.q)
@@ -106,16 +130,16 @@ class Studio:
             self.problems.update(snap)
             self.monitor.update(snap)
             self.run_panel.update(snap)
+            if self.timeline is not None:
+                self.timeline.update(snap)
             self.scene_panel.update(snap)
             self.authoring.update(snap)
-            for message in snap.messages:
+            for message in messages:
                 title = "Emergency stop" if message.startswith("emergency stop") else "Runtime"
                 notify_all(self.server, title, message)
             self.draws += 1
         except Exception:
             log.exception("drawing a snapshot failed")
-        finally:
-            self._draw_lock.release()
 
     def close(self) -> None:
         self._unsubscribe()
