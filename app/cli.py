@@ -182,7 +182,7 @@ def replay(args) -> int:
     source = ReplaySource(args.file)
     studio = Studio(source, host=args.host, port=args.port)
     source.start_live()
-    print(f"Replay of {args.file}: open {studio.url} (Start plays, Step advances, Reset rewinds)", flush=True)
+    print(f"Replay of {args.file}: open {studio.url} (the Replay timeline scrubs, plays and sets the speed)", flush=True)
     _wait_for_signal()
     source.shutdown()
     studio.close()
