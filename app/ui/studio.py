@@ -59,7 +59,7 @@ class Studio:
         if not view.environment_map:  # a hemisphere light instead: the sides of boxes stay readable, at no cost
             self.server.scene.configure_environment_map(None)
             self.server.scene.add_light_hemisphere("/lights/sky", sky_color=(255, 255, 255),
-                                                   ground_color=(120, 110, 100), intensity=1.5)
+                                                   ground_color=(210, 200, 190), intensity=1.7)
         self.server.scene.add_grid("/floor", width=16.0, height=16.0, cell_size=0.5, section_size=1.0,
                                    position=(0.0, 0.0, 0.001))
         self.server.initial_camera.position = (-2.5, -4.5, 4.0)
