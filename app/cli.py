@@ -13,6 +13,7 @@ import logging
 import signal
 import sys
 import threading
+from dataclasses import asdict as dt_asdict
 from pathlib import Path
 
 from app.runtime import DEFAULT_SCENE, DEFAULT_SEQUENCE, MAP_KINDS, ROOT
@@ -23,7 +24,12 @@ def _common(parser: argparse.ArgumentParser) -> None:
                         help="scene YAML (default: the sequence's scene, else core/sim/scenes/default.yaml)")
     parser.add_argument("--sequence", type=Path, default=DEFAULT_SEQUENCE, help="task sequence YAML")
     parser.add_argument("--map", dest="map_kind", choices=MAP_KINDS, default="object", help="map the controller uses")
-    parser.add_argument("--constraint", choices=("cbf", "edf"), default="cbf", help="collision constraint kind")
+    parser.add_argument("--constraint", choices=("cbf", "edf"), default=None,
+                        help="collision constraint kind (default: the --params file's, else cbf)")
+    parser.add_argument("--params", type=Path, default=None, metavar="FILE.yaml",
+                        help="tunables overriding core/params.py, by section (htmpc: {gamma: 0.5}, ...)")
+    parser.add_argument("--scene-may-change", action="store_true",
+                        help="accept targets too close to today's boxes with a warning (the boxes move first)")
     parser.add_argument("--log-level", default="INFO")
     parser.add_argument("--record", type=Path, default=None,
                         help="record the run to this MCAP file (.mcap; replay with `python -m app replay FILE`)")
@@ -78,6 +84,25 @@ def _recorder(args):
     from app.recording import Recorder
 
     return Recorder(args.record, depth_frames=args.record_depth)
+def _config(args, **extra):
+    """The runtime's configuration: scene, sequence, map, constraint and the tunables of --params."""
+    from app.runtime import RuntimeConfig
+    from core.params_file import Tunables, load_params
+
+    tunables = load_params(args.params) if args.params else Tunables()
+    constraint = args.constraint or tunables.htmpc.constraint
+    return RuntimeConfig(scene=_scene_for(args), sequence=args.sequence, map_kind=args.map_kind, constraint=constraint,
+                         **tunables.sections(), **extra)
+
+
+def _check_targets(runtime, args) -> None:
+    """The sequence's targets in the runtime's scene (`tasks.validation`): refusals raise, warnings are printed."""
+    from app.target_check import check_targets
+
+    text = args.sequence.read_text(encoding="utf-8")
+    for warning in check_targets(runtime, runtime.sequence, scene_may_change=args.scene_may_change,
+                                 source=str(args.sequence), text=text):
+        print(f"warning: {warning}", file=sys.stderr)
 
 
 def _wait_for_signal() -> None:
@@ -88,11 +113,10 @@ def _wait_for_signal() -> None:
 
 
 def serve(args) -> int:
-    from app.runtime import Runtime, RuntimeConfig
+    from app.runtime import Runtime
     from app.ui.studio import Studio
 
-    config = RuntimeConfig(scene=_scene_for(args), sequence=args.sequence, map_kind=args.map_kind,
-                           constraint=args.constraint, speed=args.speed)
+    config = _config(args, speed=args.speed)
     backend, bridge = None, None
     if args.backend == "bridge":
         from app.bridge.server import BridgeServer
@@ -106,6 +130,12 @@ def serve(args) -> int:
         backend = bridge.robot
         print(f"hardware bridge on {bridge.url} ({bridge.token_info.describe()})", flush=True)
     runtime = Runtime(config, backend=backend)
+    try:
+        _check_targets(runtime, args)
+    except ValueError:
+        if bridge is not None:
+            bridge.stop()
+        raise
     if bridge is not None:
         bridge.attach(runtime)
     studio = Studio(runtime, host=args.host, port=args.port, require_token=bridge is not None)
@@ -125,13 +155,13 @@ def serve(args) -> int:
 
 
 def run_headless(args) -> int:
+    from app.problems import summary_line
     from app.report import write_report
-    from app.runtime import Runtime, RuntimeConfig
+    from app.runtime import Runtime
 
-    config = RuntimeConfig(scene=_scene_for(args), sequence=args.sequence, map_kind=args.map_kind,
-                           constraint=args.constraint, perception_delay_s=args.perception_delay,
-                           actuation_delay_s=args.actuation_delay)
+    config = _config(args, perception_delay_s=args.perception_delay, actuation_delay_s=args.actuation_delay)
     runtime = Runtime(config)
+    _check_targets(runtime, args)
     recorder = _recorder(args)
     if recorder is not None:
         runtime.subscribe(recorder)
@@ -146,11 +176,15 @@ def run_headless(args) -> int:
         print(f"recording written to {args.record} ({recorder.count} snapshots)")
     out = args.out or ROOT / "runs" / dt.datetime.now().strftime("%Y%m%d-%H%M%S")
     meta = {"title": runtime.sequence.name, "sequence": str(args.sequence), "scene": str(config.scene),
-            "map": args.map_kind, "constraint": args.constraint, "outcome": runtime.run_state.value,
+            "map": args.map_kind, "constraint": config.constraint, "params": str(args.params or ""),
+            "tunables": {name: dt_asdict(getattr(config, name)) for name in ("robot", "sim", "htmpc", "mapping",
+                                                                             "sequencer")},
+            "outcome": runtime.run_state.value,
             "status": runtime.status_line(), "subtasks_done": sum(p.outcome.value == "done"
                                                                    for p in runtime.sequencer.progress)}
-    summary = write_report(out, runtime.log, runtime.world.obstacles(), meta)
+    summary = write_report(out, runtime.log, runtime.world.obstacles(), meta, runtime.problems)
     print(f"{runtime.run_state.value}: {runtime.status_line()}")
+    print(f"problems: {summary_line(runtime.problems.counts())}")
     for key, value in summary.items():
         print(f"  {key}: {value:.3f}" if isinstance(value, float) else f"  {key}: {value}")
     print(f"report written to {out}")
@@ -165,7 +199,8 @@ def replay(args) -> int:
     print(source.recording.report, flush=True)
     studio = Studio(source, host=args.host, port=args.port)
     source.start_live()
-    print(f"Replay of {args.file}: open {studio.url} (Start plays, Step advances, Reset rewinds)", flush=True)
+    print(f"Replay of {args.file}: open {studio.url} (the Replay timeline scrubs, plays and sets the speed)",
+          flush=True)
     _wait_for_signal()
     source.shutdown()
     studio.close()

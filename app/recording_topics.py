@@ -25,11 +25,12 @@ from __future__ import annotations
 
 import base64
 import math
-from dataclasses import fields
+from dataclasses import fields, is_dataclass
 from typing import Any
 
 import numpy as np
 
+from app.problems import ProblemCount, ProblemKind
 from app.snapshot import EDFSlice, RunState, Snapshot
 from core.sim.scene import Box
 from core.types import (
@@ -42,7 +43,7 @@ from core.types import (
     Posterior,
     RobotState,
 )
-from tasks.sequencer import Outcome, SubtaskProgress
+from tasks.sequencer import GoalShift, Outcome, SubtaskProgress
 
 FORMAT = "perceptive-htmpc-recording/2"
 """Written to the MCAP header's profile-independent metadata record `recording`."""
@@ -140,10 +141,12 @@ def _nan(x: float | None) -> float:
 
 
 def _record(obj: Any) -> dict:
-    """A dataclass as a dict of its fields (numbers made JSON-safe)."""
+    """A dataclass as a dict of its fields (numbers made JSON-safe, nested dataclasses as dicts)."""
     out = {}
     for f in fields(obj):
         value = getattr(obj, f.name)
+        if is_dataclass(value):
+            value = _record(value)
         out[f.name] = _num(value) if isinstance(value, float) else value
     return out
 
@@ -193,7 +196,7 @@ def snapshot_messages(snap: Snapshot, with_points: bool) -> list[tuple[str, dict
         "status": snap.status, "min_distance_m": _num(snap.min_distance_m), "collisions": snap.collisions,
         "timings_ms": {k: _num(v) for k, v in snap.timings_ms.items()}, "map_kind": snap.map_kind,
         "constraint": snap.constraint, "speed": snap.speed, "messages": list(snap.messages),
-        "fault": getattr(snap, "fault", None)}))
+        "fault": getattr(snap, "fault", None), "problems": [_record(p) for p in snap.problems]}))
     return out
 
 
@@ -230,10 +233,18 @@ def _object_map(m: dict) -> ObjectMapSnapshot:
 def _progress(p: dict) -> SubtaskProgress:
     values = _known(SubtaskProgress, p)
     values["outcome"] = Outcome(values["outcome"])
-    for name in ("elapsed_s", "held_s", "position_error_m", "orientation_error_deg"):
+    for name in ("elapsed_s", "held_s", "position_error_m", "orientation_error_deg", "timeout_s"):
         if name in values:
             values[name] = _nan(values[name])
+    if values.get("goal_shift") is not None:
+        shift = values["goal_shift"]
+        values["goal_shift"] = GoalShift(tuple(shift["original"]), tuple(shift["driven"]))
     return SubtaskProgress(**values)
+
+
+def _problem(p: dict) -> ProblemCount:
+    return ProblemCount(kind=ProblemKind(p["kind"]), count=p["count"], first_t=_nan(p["first_t"]),
+                        last_t=_nan(p["last_t"]), last_message=p["last_message"])
 
 
 def snapshot_from_messages(messages: dict[str, dict]) -> Snapshot:
@@ -257,7 +268,8 @@ def snapshot_from_messages(messages: dict[str, dict]) -> Snapshot:
         min_distance_m=_nan(run["min_distance_m"]), collisions=run["collisions"],
         timings_ms={k: _nan(v) for k, v in run["timings_ms"].items()}, map_kind=run["map_kind"],
         constraint=run["constraint"], speed=run["speed"],
-        command=None if command is None else _np(command["qdot"]), fault=run.get("fault"))))
+        command=None if command is None else _np(command["qdot"]), fault=run.get("fault"),
+        problems=tuple(_problem(p) for p in run.get("problems", ())))))
 
 
 def depth_frame_from_messages(image: dict, info: dict) -> DepthFrame:

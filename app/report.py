@@ -13,6 +13,7 @@ import matplotlib.patches as mpatches  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from app.problems import ProblemKind, ProblemLog  # noqa: E402
 from app.run_log import RunLog  # noqa: E402
 from core.atomic_file import atomic_output, write_text_atomic  # noqa: E402
 from core.sim.scene import Box  # noqa: E402
@@ -26,12 +27,16 @@ def _draw_boxes(ax, boxes: tuple[Box, ...]) -> None:
         ax.add_patch(mpatches.Polygon(corners, closed=True, color=(0.76, 0.6, 0.42), alpha=0.8))
 
 
-def write_report(out_dir: Path, log: RunLog, boxes: tuple[Box, ...], meta: dict) -> dict:
-    """Write `report.json`, `path.png` and `timeseries.png` into `out_dir`; returns the summary."""
+def write_report(out_dir: Path, log: RunLog, boxes: tuple[Box, ...], meta: dict,
+                 problems: ProblemLog | None = None) -> dict:
+    """Write `report.json` (with the problems counted by kind), `path.png` and `timeseries.png` into `out_dir`;
+    returns the summary."""
     out_dir.mkdir(parents=True, exist_ok=True)
     summary = {**log.summary(), **{k: v for k, v in meta.items() if isinstance(v, (int, float))}}
-    write_text_atomic(out_dir / "report.json", json.dumps({"meta": meta, "summary": summary, "log": log.to_json()},
-                                                         indent=1, allow_nan=True))
+    problems = problems or ProblemLog()
+    summary.update({f"problems_{k.value}": float(problems.count(k)) for k in ProblemKind})
+    report = {"meta": meta, "summary": summary, "problems": problems.to_json(), "log": log.to_json()}
+    write_text_atomic(out_dir / "report.json", json.dumps(report, indent=1, allow_nan=True))
     q = np.array(log.q) if log.q else np.zeros((0, 9))
     fig, ax = plt.subplots(figsize=(6, 6))
     _draw_boxes(ax, boxes)

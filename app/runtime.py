@@ -25,9 +25,10 @@ import numpy as np
 
 import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported)
 from app.components import make_controller, make_map
+from app.problems import ProblemKind, ProblemLog
 from app.run_log import RunLog
 from app.snapshot import EDFSlice, RunState, Snapshot
-from core.params import HTMPCParams, MappingParams, SequencerParams, SimParams
+from core.params import HTMPCParams, MappingParams, RobotParams, SequencerParams, SimParams
 from core.robot.model import RobotModel
 from core.sim.scene import Box, Scene, load_scene, random_scene
 from core.sim.sim_robot import SimRobot
@@ -64,6 +65,7 @@ class RuntimeConfig:
     mapping: MappingParams = field(default_factory=MappingParams)
     sequencer: SequencerParams = field(default_factory=SequencerParams)
     sim: SimParams = field(default_factory=SimParams)
+    robot: RobotParams = field(default_factory=RobotParams)
 
     def __post_init__(self) -> None:
         if self.map_kind not in MAP_KINDS:
@@ -80,7 +82,7 @@ class Runtime:
     def __init__(self, config: RuntimeConfig | None = None, scene: Scene | None = None,
                  sequence: TaskSequence | None = None, backend: RobotBackend | None = None) -> None:
         self.config = config or RuntimeConfig()
-        self.robot = RobotModel()
+        self.robot = RobotModel(self.config.robot)
         self._lock = threading.RLock()
         self._map_lock = threading.Lock()
         self._scene = scene or (load_scene(self.config.scene) if self.config.scene else Scene())
@@ -95,6 +97,7 @@ class Runtime:
         self.sequence_version = 0
         self.run_state = RunState.IDLE
         self.log = RunLog()
+        self.problems = ProblemLog(1e3 / self.config.htmpc.control_rate_hz)
         self._subscribers: list[Callable[[Snapshot], None]] = []
         self._messages: deque[str] = deque(maxlen=20)
         self._threads: list[threading.Thread] = []
@@ -162,7 +165,7 @@ class Runtime:
                 collisions=len(self.world.collisions) if self.world else 0, timings_ms=dict(self.timings_ms),
                 map_kind=self.config.map_kind, constraint=self.config.constraint, speed=self.config.speed,
                 messages=messages, command=getattr(self, "last_command", None),
-                depth_frames=tuple(self.latest_frames.values()))
+                depth_frames=tuple(self.latest_frames.values()), problems=self.problems.counts())
 
     def publish(self) -> Snapshot:
         """Send a snapshot, with the messages queued since the last publish, to every subscriber."""
@@ -244,6 +247,7 @@ class Runtime:
             self._frames.clear()
             self._pending_plans.clear()
             self.log = RunLog()
+            self.problems = ProblemLog(1e3 / self.config.htmpc.control_rate_hz)
             with self._map_lock:
                 self._build_parts()
 
@@ -341,6 +345,7 @@ class Runtime:
             t_solve = time.perf_counter()
             plan = self.controller.solve(state, refs, edf)
             self.timings_ms["solve"] = (time.perf_counter() - t_solve) * 1e3
+            self.problems.observe_plan(plan, state.t, self.timings_ms["solve"])
             self._pending_plans.append((state.t + self.config.actuation_delay_s, plan))
             self.last_control_wall = time.time()
         self.timings_ms["control"] = (time.perf_counter() - t0) * 1e3
@@ -354,6 +359,7 @@ class Runtime:
             moving = self.run_state == RunState.RUNNING or (self.run_state == RunState.PAUSED and self.world)
             qdot = self.plan.velocity_at(t) if (moving and self.plan is not None) else np.zeros(9)
         if not np.all(np.isfinite(qdot)):
+            self.problems.record(ProblemKind.FAULT, t, "non-finite command from the plan")
             self.notify("non-finite command from the plan: stopping")
             qdot = np.zeros(9)
         qdot = self.robot.limits.clip_velocity(qdot)
@@ -436,6 +442,7 @@ class Runtime:
                 loop()
             except Exception as err:
                 log.exception("%s loop crashed", threading.current_thread().name)
+                self.problems.record(ProblemKind.FAULT, self.time, f"{threading.current_thread().name} loop: {err}")
                 self.emergency_stop()
                 self.notify(f"{threading.current_thread().name} loop crashed: {err}")
         return run
@@ -500,6 +507,8 @@ class Runtime:
             if self.time + 1e-9 < next_t:
                 time.sleep(0.002)
                 continue
+            if self.time - next_t > period and self.run_state == RunState.RUNNING:
+                self.problems.record(ProblemKind.WATCHDOG, self.time, f"control step {self.time - next_t:.2f} s late")
             next_t = self.time + period
             self._control(self.state)
             self._measure(getattr(self, "_last_qdot", np.zeros(9)))

@@ -10,6 +10,7 @@ from enum import StrEnum
 
 import numpy as np
 
+from app.problems import ProblemCount
 from core.sim.scene import Box
 from core.types import DepthFrame, ObjectMapSnapshot, Plan, RobotState
 from tasks.sequencer import SubtaskProgress
@@ -71,3 +72,5 @@ class Snapshot:
     """The last joint velocity command sent to the robot (9,), None before the first."""
     depth_frames: tuple[DepthFrame, ...] = ()
     """The newest depth frame of each camera (recordings keep them on request)."""
+    problems: tuple[ProblemCount, ...] = ()
+    """Problems of the run so far, counted by kind (`app.problems`)."""

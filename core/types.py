@@ -186,10 +186,15 @@ class BaseReference:
 
 @dataclass(frozen=True)
 class EEReference:
-    """End-effector reference over the horizon: position (K×3, m), rotation (K×3×3) or None."""
+    """End-effector reference over the horizon: position (K×3, m), rotation (K×3×3) or None.
+
+    `frame` 'world' (default) or 'base': a pose in the base frame (x ahead, z up from the floor) that the
+    hand holds relative to the base wherever the base goes; the controller computes the error in the base
+    frame at every node (`core.htmpc.tasks.EEBaseFrameTask`)."""
 
     position: np.ndarray
     rotation: np.ndarray | None = None
+    frame: str = "world"
 
 
 @dataclass(frozen=True)

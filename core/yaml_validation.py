@@ -86,6 +86,14 @@ def _too_deep_at(text: str) -> int | None:
         if reached > MAX_DEPTH:
             return event.start_mark.line + 1
     return None
+def line_of(text: str, field: str) -> int | None:
+    """1-based line of the node at a dotted field (e.g. 'subtasks.1.target') in YAML text; None if unknown."""
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError:
+        return None
+    loc = tuple(int(k) if k.isdigit() else k for k in field.split(".")) if field else ()
+    return _locate(root, loc, missing=True)[0]
 
 
 def load_yaml_model(text: str, model: type[M], source: str = "<string>") -> M:

@@ -78,8 +78,10 @@ def look_at_rotation(eye: np.ndarray, target: np.ndarray) -> np.ndarray:
 
 def navigation_references(path: np.ndarray, s_now: float, yaw_now: float, goal_yaw: float | None,
                           ee_offset_base: np.ndarray, params: SequencerParams, n_nodes: int, dt: float,
-                          order: tuple[str, ...], switched: bool) -> References:
-    """References for a base subtask along `path` from arc length `s_now`."""
+                          order: tuple[str, ...], switched: bool,
+                          ee_hold: tuple[np.ndarray, np.ndarray | None] | None = None) -> References:
+    """References for a base subtask along `path` from arc length `s_now`; `ee_hold` (position, rotation or
+    None, in the base frame) holds the hand there instead of the ready pose looking ahead."""
     s = path_arclength(path)
     at = s_now + params.nominal_speed_mps * dt * np.arange(n_nodes + 1)
     xy = point_at(path, s, at)
@@ -90,6 +92,12 @@ def navigation_references(path: np.ndarray, s_now: float, yaw_now: float, goal_y
     elif s[-1] < params.goal_slowdown_m:
         yaw = np.full_like(at, yaw_now)
     yaw = unwrap_near(yaw, yaw_now)
+    base = BaseReference(xy=xy, yaw=yaw)
+    if ee_hold is not None:
+        position, rotation = ee_hold
+        rot = None if rotation is None else np.asarray(rotation, float)[None]
+        return References(order=order, base=base, ee=EEReference(np.asarray(position, float)[None], rot, "base"),
+                          switched=switched)
     c, sn = np.cos(yaw), np.sin(yaw)
     ee_pos = np.stack([xy[:, 0] + c * ee_offset_base[0] - sn * ee_offset_base[1],
                        xy[:, 1] + sn * ee_offset_base[0] + c * ee_offset_base[1],
@@ -99,8 +107,7 @@ def navigation_references(path: np.ndarray, s_now: float, yaw_now: float, goal_y
     look = np.where((s[-1] - at < params.lookahead_m)[:, None], xy + params.lookahead_m * heading, look)
     look3 = np.column_stack([look, np.full(len(look), 0.3)])
     ee_rot = np.stack([look_at_rotation(p, t) for p, t in zip(ee_pos, look3, strict=True)])
-    return References(order=order, base=BaseReference(xy=xy, yaw=yaw), ee=EEReference(ee_pos, ee_rot),
-                      switched=switched)
+    return References(order=order, base=base, ee=EEReference(ee_pos, ee_rot), switched=switched)
 
 
 def manipulation_stance(target: np.ndarray, base_start: np.ndarray, reach_m: float) -> np.ndarray:
@@ -117,9 +124,10 @@ def manipulation_stance(target: np.ndarray, base_start: np.ndarray, reach_m: flo
 
 
 def manipulation_references(position: np.ndarray, rotation: np.ndarray | None, stance: np.ndarray,
-                            order: tuple[str, ...], switched: bool) -> References:
-    """References for an EE subtask: a constant EE target and a base stance (`manipulation_stance`)."""
+                            order: tuple[str, ...], switched: bool, frame: str = "world") -> References:
+    """References for an EE subtask: a constant EE target (in `frame`) and a base stance (`manipulation_stance`,
+    or where the base stands for a base-frame target)."""
     base = BaseReference(xy=np.asarray(stance[:2], float)[None], yaw=np.array([stance[2]]))
     rot = None if rotation is None else np.asarray(rotation, float)[None]
-    return References(order=order, base=base, ee=EEReference(np.asarray(position, float)[None], rot),
+    return References(order=order, base=base, ee=EEReference(np.asarray(position, float)[None], rot, frame),
                       switched=switched)

@@ -14,6 +14,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 TaskName = Literal["base", "ee"]
+Frame = Literal["world", "base"]
 _Vec3 = tuple[float, float, float]
 
 
@@ -37,10 +38,13 @@ class BasePose(_Strict):
 
 
 class EEPose(_Strict):
-    """End-effector target: `position` (m, world) and optional roll-pitch-yaw `rpy_deg` (None: position only)."""
+    """End-effector target: `position` (m) and optional roll-pitch-yaw `rpy_deg` (None: position only), in the
+    world or, with `frame: base`, in the base frame (x ahead, z up from the floor): held relative to the base
+    wherever it drives."""
 
     position: _Vec3
     rpy_deg: _Vec3 | None = None
+    frame: Frame = "world"
 
     def rotation(self) -> np.ndarray | None:
         """World rotation R_d (3×3) from rpy (fixed axes x, y, z), None when position only."""
@@ -92,11 +96,23 @@ class _SubtaskBase(_Strict):
 
 
 class BaseSubtask(_SubtaskBase):
-    """Drive the base to a pose, through optional waypoints (whole-body navigation)."""
+    """Drive the base to a pose, through optional waypoints (whole-body navigation).
+
+    `ee` (frame: base) holds the hand at that pose relative to the base while it drives (the paper's
+    navigation with the hand fixed beside the base); without it the hand stays at its ready pose, its
+    camera looking ahead along the path."""
 
     kind: Literal["base"] = "base"
     target: BasePose | None = None
     waypoints: list[BasePose] = []
+    ee: EEPose | None = None
+
+    @field_validator("ee")
+    @classmethod
+    def _ee_in_base_frame(cls, v: EEPose | None) -> EEPose | None:
+        if v is not None and v.frame != "base":
+            raise ValueError("the hand pose held while driving is given in the base frame: add 'frame: base'")
+        return v
 
     @property
     def order(self) -> list[TaskName]:
@@ -104,11 +120,22 @@ class BaseSubtask(_SubtaskBase):
 
 
 class EESubtask(_SubtaskBase):
-    """Bring the end effector to a pose (manipulation), through optional waypoints."""
+    """Bring the end effector to a pose (manipulation), through optional waypoints; in the base frame the base
+    holds where it is and only the arm moves."""
 
     kind: Literal["ee"] = "ee"
     target: EEPose | None = None
     waypoints: list[EEPose] = []
+
+    @model_validator(mode="after")
+    def _one_frame(self):
+        if len({p.frame for p in self.path()}) > 1:
+            raise ValueError("target and waypoints of an EE subtask share one frame (all world or all base)")
+        return self
+
+    @property
+    def frame(self) -> Frame:
+        return self.goal().frame
 
     @property
     def order(self) -> list[TaskName]:

@@ -25,13 +25,23 @@ def parse_sequence(text: str, source: str = "<sequence>") -> TaskSequence:
     return load_yaml_model(text, TaskSequence, source)
 
 
-_KEY_ORDER = ("name", "kind", "target", "waypoints", "tolerance", "timeout_s", "dwell_s", "priority")
+_KEY_ORDER = ("name", "kind", "target", "waypoints", "ee", "tolerance", "timeout_s", "dwell_s", "priority")
+
+
+def _drop_world_frame(pose):
+    """`frame: world` is the default: written only when it says something."""
+    if isinstance(pose, dict) and pose.get("frame") == "world":
+        return {k: v for k, v in pose.items() if k != "frame"}
+    if isinstance(pose, list):
+        return [_drop_world_frame(p) for p in pose]
+    return pose
 
 
 def sequence_to_yaml(seq: TaskSequence) -> str:
     """YAML text of a sequence (subtask keys in reading order); `parse_sequence` reads it back equal."""
     data = seq.model_dump(mode="json", exclude_none=True)
-    data["subtasks"] = [{k: s[k] for k in _KEY_ORDER if k in s and s[k] != []} for s in data["subtasks"]]
+    data["subtasks"] = [{k: _drop_world_frame(s[k]) for k in _KEY_ORDER if k in s and s[k] != []}
+                        for s in data["subtasks"]]
     return yaml.safe_dump(data, sort_keys=False, default_flow_style=None)
 
 

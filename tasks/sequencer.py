@@ -40,6 +40,18 @@ class Outcome(StrEnum):
 
 
 @dataclass(frozen=True)
+class GoalShift:
+    """The base goal the planner drove to instead of the authored one (blocked on the map): (x, y) each."""
+
+    original: tuple[float, float]
+    driven: tuple[float, float]
+
+    @property
+    def distance_m(self) -> float:
+        return math.hypot(self.driven[0] - self.original[0], self.driven[1] - self.original[1])
+
+
+@dataclass(frozen=True)
 class SubtaskProgress:
     """How one subtask is going: errors to its goal (m, deg), time active and time held in tolerance."""
 
@@ -52,6 +64,9 @@ class SubtaskProgress:
     position_error_m: float = float("nan")
     orientation_error_deg: float = float("nan")
     message: str = ""
+    timeout_s: float = float("nan")
+    goal_shift: GoalShift | None = None
+    """Set while the base drives to a goal the planner moved off an obstacle; completion is judged there."""
 
 
 def _angle_between(R_a: np.ndarray, R_b: np.ndarray) -> float:
@@ -61,6 +76,13 @@ def _angle_between(R_a: np.ndarray, R_b: np.ndarray) -> float:
 
 def _wrap(a: float) -> float:
     return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+def _goal_shift(goal: np.ndarray, path_end: np.ndarray) -> GoalShift | None:
+    """The planned path ends at the final goal, or at the free cell `plan_path` moved a blocked one to."""
+    if float(np.hypot(*(path_end - goal))) < 1e-6:
+        return None
+    return GoalShift((float(goal[0]), float(goal[1])), (float(path_end[0]), float(path_end[1])))
 
 
 class Sequencer:
@@ -80,7 +102,7 @@ class Sequencer:
     def reset(self) -> None:
         """Back to the first subtask, nothing done."""
         self.index = 0
-        self.progress = [SubtaskProgress(i, s.name or f"{s.kind} {i + 1}", s.kind)
+        self.progress = [SubtaskProgress(i, s.name or f"{s.kind} {i + 1}", s.kind, timeout_s=s.timeout_s)
                          for i, s in enumerate(self.sequence.subtasks)]
         self._started_t: float | None = None
         self._held_since: float | None = None
@@ -164,10 +186,10 @@ class Sequencer:
         self._plan_t = -math.inf
         self._grid_sig = None
         sub = self.active
-        if isinstance(sub, EESubtask):
+        if isinstance(sub, EESubtask) and sub.frame == "world":
             reach = float(np.hypot(*self.ee_offset_base[:2]))
             self._hold_base = manipulation_stance(np.array(sub.goal().position), state.q[:3], reach)
-        else:
+        else:  # base subtasks, and EE targets in the base frame (only the arm moves)
             self._hold_base = state.q[:3].copy()
         self._ee_waypoint = 0
         self._base_waypoint = 0
@@ -182,10 +204,14 @@ class Sequencer:
     def _errors(self, sub: BaseSubtask | EESubtask, state: RobotState) -> tuple[float, float]:
         goal = sub.goal()
         if isinstance(sub, BaseSubtask):
-            pos = float(np.hypot(*(state.q[:2] - goal.xy())))
+            shift = self.progress[self.index].goal_shift
+            xy = np.array(shift.driven) if shift is not None else goal.xy()
+            pos = float(np.hypot(*(state.q[:2] - xy)))
             ori = math.nan if goal.yaw_rad is None else abs(math.degrees(_wrap(state.q[2] - goal.yaw_rad)))
             return pos, ori
         T = self.robot.ee_pose(state.q)
+        if sub.frame == "base":
+            T = np.linalg.inv(self.robot.frame_pose(state.q, "mobile_base")) @ T
         target = sub.path()[min(self._ee_waypoint, len(sub.path()) - 1)]
         pos = float(np.linalg.norm(T[:3, 3] - np.array(target.position)))
         if self._ee_waypoint < len(sub.waypoints) and pos <= sub.tolerance.position_m:
@@ -201,13 +227,15 @@ class Sequencer:
         if isinstance(sub, EESubtask):
             target = sub.path()[min(self._ee_waypoint, len(sub.path()) - 1)]
             return manipulation_references(np.array(target.position), target.rotation(), self._hold_base, order,
-                                           self._switched)
+                                           self._switched, frame=sub.frame)
         self._maybe_replan(sub, state, occupied, t)
         s = path_arclength(self.path)
         self._s_progress = project_on_path(self.path, s, state.q[:2], self._s_progress)
         self._pass_waypoints(sub, state.q[:2], s)
+        hold = None if sub.ee is None else (np.array(sub.ee.position), sub.ee.rotation())
         return navigation_references(self.path, self._s_progress, float(state.q[2]), sub.goal().yaw_rad,
-                                     self.ee_offset_base, self.params, self.n_nodes, self.dt, order, self._switched)
+                                     self.ee_offset_base, self.params, self.n_nodes, self.dt, order, self._switched,
+                                     ee_hold=hold)
 
     def _maybe_replan(self, sub: BaseSubtask, state: RobotState, occupied: np.ndarray | None, t: float) -> None:
         grid = None
@@ -220,11 +248,17 @@ class Sequencer:
             return
         goals = [w.xy() for w in sub.path()[self._base_waypoint:]]
         notes: list[str] = []
+        shift = None
         try:
             if grid is not None:
                 path = plan_path(grid, state.q[:2], goals, notes=notes)
+                shift = _goal_shift(goals[-1], path[-1])  # a blocked final goal is moved to a free cell
             else:
                 path = np.array([state.q[:2], *goals])
+            notes = [n for n in notes if not n.startswith("goal (")]
+            if shift is not None:
+                notes.append(f"goal moved {shift.distance_m:.2f} m to ({shift.driven[0]:.2f}, {shift.driven[1]:.2f}) "
+                             "to clear an obstacle")
             message = "; ".join(notes)
         except NoPathError as err:
             path = state.q[None, :2].copy()  # hold here until the map changes (a box moves away)
@@ -233,8 +267,10 @@ class Sequencer:
         self._s_progress = 0.0
         self._plan_t, self._grid_sig = t, sig
         p = self.progress[self.index]
-        if message != p.message:
-            self.progress[self.index] = replace(p, message=message)
+        if message != p.message or shift != p.goal_shift:
+            if shift is not None and shift != p.goal_shift:
+                log.info("subtask %d: %s", self.index, message)
+            self.progress[self.index] = replace(p, message=message, goal_shift=shift)
 
     def _pass_waypoints(self, sub: BaseSubtask, xy: np.ndarray, s: np.ndarray) -> None:
         """Mark intermediate base waypoints passed, so a re-plan never leads back to one.

@@ -272,12 +272,13 @@ class RunStatus(BaseModel):
 
 
 class SequenceOut(BaseModel):
-    """The authored sequence: its name, subtasks and YAML text."""
+    """The authored sequence: its name, subtasks and YAML text; `warnings` from the target checks."""
 
     name: str
     version: int
     subtasks: int
     yaml: str
+    warnings: list[str] = []
 
 
 class ValidationOut(BaseModel):
@@ -287,6 +288,7 @@ class ValidationOut(BaseModel):
     name: str | None = None
     subtasks: int = 0
     problems: list[Problem] = []
+    warnings: list[str] = []
 
 
 class BoxOut(BaseModel):
@@ -314,9 +316,11 @@ Yaw = Annotated[float, Field(ge=-10.0, le=10.0, allow_inf_nan=False)]
 
 
 class SequenceIn(Message):
-    """A task sequence as YAML text (the format of `tasks/examples/*.yaml`)."""
+    """A task sequence as YAML text (the format of `tasks/examples/*.yaml`). Its targets are checked against the
+    robot and the scene; `scene_may_change` accepts targets too close to today's boxes with a warning."""
 
     yaml: Annotated[str, Field(max_length=1_000_000)]
+    scene_may_change: bool = False
 
 
 class StepIn(Message):

@@ -25,6 +25,7 @@ from app.bridge.protocol import CommandReason
 from app.bridge.robot_link import STALE_AFTER_S, RobotLink
 from app.bridge.watchdog import StaleStateWatchdog
 from app.bridge.web_app import create_app
+from app.problems import ProblemKind
 from app.snapshot import RunState
 
 if TYPE_CHECKING:
@@ -118,6 +119,7 @@ class BridgeServer:
             return
         attachment.runtime.pause()
         what = "the driver disconnected" if age_s == float("inf") else f"robot state is {age_s * 1e3:.0f} ms old"
+        attachment.runtime.problems.record(ProblemKind.STALE_STATE, attachment.runtime.time, what)
         attachment.runtime.notify(f"{what}: zero velocity commanded, run paused (Start resumes)")
 
     def stop(self, timeout_s: float = 10.0) -> None:

@@ -104,3 +104,32 @@ class SequenceHistory:
         if self.can_redo:
             self._past.append(self._future.pop())
         return self.current
+
+
+def follow_selection(before: TaskSequence, after: TaskSequence, selected: int | None) -> int | None:
+    """Where the selection goes when `before` becomes `after` by undo or redo: the same subtask if it is still
+    there, else the first subtask that changed (so the next Delete never hits a subtask the operator did not
+    pick), else none."""
+    if selected is not None and 0 <= selected < len(before.subtasks):
+        sub = before.subtasks[selected]
+        same = [i for i, s in enumerate(after.subtasks) if s == sub]
+        if same:
+            return min(same, key=lambda i: abs(i - selected))
+    changed = next((i for i, (a, b) in enumerate(zip(before.subtasks, after.subtasks, strict=False)) if a != b),
+                   min(len(before.subtasks), len(after.subtasks)))
+    return changed if changed < len(after.subtasks) else (len(after.subtasks) - 1 if after.subtasks else None)
+
+
+def describe_change(before: TaskSequence, after: TaskSequence) -> str:
+    """One line for the operator saying what an undo or redo changed."""
+    if before.name != after.name:
+        return f"sequence name '{before.name}' → '{after.name}'"
+    n0, n1 = len(before.subtasks), len(after.subtasks)
+    if n1 > n0:
+        i = follow_selection(before, after, None)
+        return f"subtask {i + 1} '{after.subtasks[i].name}' back" if i is not None else "a subtask back"
+    if n1 < n0:
+        i = next((k for k, (a, b) in enumerate(zip(before.subtasks, after.subtasks, strict=False)) if a != b), n1)
+        return f"subtask {i + 1} '{before.subtasks[i].name}' removed"
+    i = follow_selection(before, after, None)
+    return f"subtask {i + 1} '{after.subtasks[i].name}' changed" if i is not None else "no change"

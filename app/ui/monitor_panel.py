@@ -1,4 +1,4 @@
-"""Live monitoring: status line, solve time, task error per level, clearance and E[v] per object."""
+"""Live monitoring plots: solve and mapping time, task error per level, clearance and E[v] per object."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import viser
 import viser.uplot as uplot
 
-from app.snapshot import RunState, Snapshot
+from app.snapshot import Snapshot
 
 HISTORY = 300
 MAX_OBJECTS = 6
@@ -31,6 +31,10 @@ def _finite(a: np.ndarray) -> np.ndarray:
     return a
 
 
+LEGEND = {"live": False}
+"""The legend names the series; uPlot's live legend shows each value under the cursor, '--' until hovered."""
+
+
 def _series(labels: list[str]) -> tuple[uplot.Series, ...]:
     out = [uplot.Series(label="t (s)")]
     out += [uplot.Series(label=lab, stroke=_COLORS[i % len(_COLORS)], width=2) for i, lab in enumerate(labels)]
@@ -38,7 +42,7 @@ def _series(labels: list[str]) -> tuple[uplot.Series, ...]:
 
 
 class MonitorPanel:
-    """A status line and four rolling plots (x axis: sim time, not wall time)."""
+    """Four rolling plots (x axis: sim time, not wall time)."""
 
     def __init__(self, server: viser.ViserServer) -> None:
         self.server = server
@@ -46,8 +50,6 @@ class MonitorPanel:
         self.solve = self.errors = self.clearance = self.consistency = None
         self._obj_ids: list[int] = []
         self._last_plot = 0.0
-        self.status = server.gui.add_markdown("**starting**", order=0)
-        self.progress = server.gui.add_markdown("", order=1)
 
     def build_plots(self) -> None:
         """The plots, in whatever GUI container is active (the studio's 'Monitor' tab)."""
@@ -55,18 +57,36 @@ class MonitorPanel:
         scales = {"x": uplot.Scale(time=False, auto=True)}
         empty = (np.zeros(1), np.zeros(1), np.zeros(1))
         self.solve = server.gui.add_uplot(empty, _series(["solve ms", "map ms"]), title="Solve / mapping time (ms)",
-                                          scales=scales, aspect=2.0)
+                                          scales=scales, aspect=2.0,
+                                          legend=LEGEND)
         self.errors = server.gui.add_uplot(empty, _series(["level 1", "level 2"]), title="Task error per level",
-                                           scales=scales, aspect=2.0)
+                                           scales=scales, aspect=2.0,
+                                          legend=LEGEND)
         self.clearance = server.gui.add_uplot((np.zeros(1), np.zeros(1)), _series(["min distance (m)"]),
-                                              title="Robot–box distance (m)", scales=scales, aspect=2.0)
+                                              title="Robot–box distance (m)", scales=scales, aspect=2.0,
+                                          legend=LEGEND)
         obj_empty = tuple(np.zeros(1) for _ in range(MAX_OBJECTS + 1))
         self.consistency = server.gui.add_uplot(obj_empty, _series([f"obj {i}" for i in range(MAX_OBJECTS)]),
-                                                title="E[v] per object", scales=scales, aspect=2.0)
+                                                title="E[v] per object", scales=scales, aspect=2.0,
+                                          legend=LEGEND)
+
+    def load_history(self, snapshots: list[Snapshot]) -> None:
+        """Start the plots over from these snapshots (a replay jumped in time); the next update draws them."""
+        self.rows.clear()
+        self._obj_ids.clear()
+        for snap in snapshots[-HISTORY:]:
+            self._add_row(snap)
+        self._last_plot = 0.0
 
     def update(self, snap: Snapshot) -> None:
-        self.status.content = self._status(snap)
-        self.progress.content = self._progress(snap)
+        self._add_row(snap)
+        now = time.monotonic()
+        if self.solve is None or now - self._last_plot < PLOT_PERIOD_S:
+            return
+        self._last_plot = now
+        self._plot()
+
+    def _add_row(self, snap: Snapshot) -> None:
         plan = snap.plan
         errs = list(plan.task_errors) if plan is not None else []
         objects = [o for o in (snap.object_map.objects if snap.object_map else ())][:MAX_OBJECTS]
@@ -77,10 +97,8 @@ class MonitorPanel:
         self.rows.append((snap.state.t, snap.timings_ms.get("solve", np.nan), snap.timings_ms.get("mapping", np.nan),
                           errs[0] if errs else np.nan, errs[1] if len(errs) > 1 else np.nan, snap.min_distance_m,
                           [ev.get(i, np.nan) for i in self._obj_ids] + [np.nan] * (MAX_OBJECTS - len(self._obj_ids))))
-        now = time.monotonic()
-        if self.solve is None or now - self._last_plot < PLOT_PERIOD_S:
-            return
-        self._last_plot = now
+
+    def _plot(self) -> None:
         cols = list(zip(*self.rows, strict=True))
         t = np.asarray(cols[0], float)
         self.solve.data = (t, _finite(cols[1]), _finite(cols[2]))
@@ -88,20 +106,3 @@ class MonitorPanel:
         self.clearance.data = (t, _finite(cols[5]))
         evs = np.asarray(cols[6], float)
         self.consistency.data = (t, *[_finite(evs[:, i]) for i in range(MAX_OBJECTS)])
-
-    @staticmethod
-    def _status(snap: Snapshot) -> str:
-        icon = {RunState.RUNNING: "▶", RunState.PAUSED: "⏸", RunState.ESTOP: "⛔", RunState.FINISHED: "✔",
-                RunState.FAILED: "✖"}.get(snap.run_state, "■")
-        return (f"{icon} **{snap.run_state.value}** · t = {snap.state.t:.1f} s · {snap.status}  \n"
-                f"map: {snap.map_kind} · constraint: {snap.constraint} · clearance {snap.min_distance_m:.2f} m · "
-                f"collisions {snap.collisions}")
-
-    @staticmethod
-    def _progress(snap: Snapshot) -> str:
-        lines = []
-        for p in snap.progress:
-            mark = {"done": "✔", "failed": "✖", "active": "▶"}.get(p.outcome.value, "·")
-            extra = f" — {p.message}" if p.message else ""
-            lines.append(f"{mark} {p.index + 1}. {p.name}{extra}")
-        return "  \n".join(lines) or "_no subtasks_"

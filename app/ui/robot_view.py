@@ -16,8 +16,10 @@ log = logging.getLogger(__name__)
 
 
 @cache
-def _link_mesh(link: str) -> trimesh.Trimesh:
-    loaded = trimesh.load(ur10_mesh(link, "visual"))
+def _link_mesh(link: str, kind: str = "collision") -> trimesh.Trimesh:
+    """A UR10 link's mesh: 'collision' (5.8k triangles for the arm, what software WebGL draws smoothly) or
+    'visual' (116k triangles)."""
+    loaded = trimesh.load(ur10_mesh(link, kind))
     mesh = loaded.to_geometry() if isinstance(loaded, trimesh.Scene) else loaded
     mesh.visual = trimesh.visual.ColorVisuals(mesh, face_colors=(150, 160, 175, 255))
     return mesh
@@ -31,7 +33,8 @@ def wxyz(R: np.ndarray) -> np.ndarray:
 class RobotView:
     """Scene nodes of the robot under `/robot`; `update(q)` moves them."""
 
-    def __init__(self, server: viser.ViserServer, robot: RobotModel, name: str = "/robot") -> None:
+    def __init__(self, server: viser.ViserServer, robot: RobotModel, name: str = "/robot",
+                 meshes: str = "collision") -> None:
         self.robot = robot
         self.frames: dict[str, viser.FrameHandle] = {}
         lx, ly, lz = robot.params.base_size_m
@@ -44,7 +47,7 @@ class RobotView:
                 server.scene.add_box(f"{name}/{link}/rack", color=(60, 60, 66), dimensions=(0.4, 0.5, 0.6),
                                      position=(-0.25, 0.0, lz + 0.3))
             elif link in ARM_LINKS:
-                server.scene.add_mesh_trimesh(f"{name}/{link}/mesh", _link_mesh(link))
+                server.scene.add_mesh_trimesh(f"{name}/{link}/mesh", _link_mesh(link, meshes))
 
     def update(self, q: np.ndarray) -> None:
         """Pose every link from the joint state q[9]."""

@@ -6,7 +6,7 @@ import viser
 
 from app.runtime import MAP_KINDS, Runtime
 from app.snapshot import RunState, Snapshot
-from app.ui.notify import guarded, notify_all
+from app.ui.notify import guarded
 
 
 class RunPanel:
@@ -15,7 +15,7 @@ class RunPanel:
     def __init__(self, server: viser.ViserServer, runtime: Runtime) -> None:
         self.server, self.runtime = server, runtime
         with server.gui.add_folder("Run"):
-            self.estop = server.gui.add_button("EMERGENCY STOP (Esc)", color="red", icon=None,
+            self.estop = server.gui.add_button("EMERGENCY STOP (Esc)", color="red", icon=viser.Icon.HAND_STOP,
                                                hint="Zero velocity now; Start or Reset to go on")
             self.buttons = server.gui.add_button_group("Control", ("Start", "Pause", "Step", "Stop", "Reset"))
             self.speed = server.gui.add_slider("Speed (×)", min=0.1, max=4.0, step=0.1,
@@ -32,9 +32,14 @@ class RunPanel:
         self.constraint.on_update(
             guarded(server, "constraint kind")(lambda _: runtime.configure(constraint=self.constraint.value)))
 
+    def hide_controls(self) -> None:
+        """A replay has its own playback controls (`TimelinePanel`); map and constraint are the recorded ones."""
+        for handle in (self.buttons, self.speed, self.map_kind, self.constraint):
+            handle.visible = False
+
     def _estop(self) -> None:
+        """The runtime says so to every browser (it also stops from the bridge): one notice, not two."""
         self.runtime.emergency_stop()
-        notify_all(self.server, "Emergency stop", "The robot was stopped. Start or Reset to go on.")
 
     def _control(self, action: str) -> None:
         {"Start": self.runtime.start, "Pause": self.runtime.pause, "Step": self.runtime.step,

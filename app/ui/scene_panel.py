@@ -1,5 +1,9 @@
 """Scene edits while the robot runs: select a box (list or click), drag it with a gizmo or type its
-position, add, delete, randomise (the paper's generator), save and load scene files."""
+pose and apply it, add, delete, randomise (the paper's generator), save and load scene files.
+
+Typed values only move the gizmo (a preview) until 'Move to typed pose': applied field by field, x then y
+put the box through an in-between pose the operator never asked for. The gizmo floats above the box: at its
+centre the box hid its handles and a drag turned the camera instead."""
 
 from __future__ import annotations
 
@@ -14,6 +18,8 @@ from app.ui.notify import guarded, notify_all
 from core.sim.scene import Box, parse_scene, scene_to_yaml
 
 NONE = "(none)"
+GIZMO_LIFT_M = 0.15
+"""The gizmo sits this far above the top of the selected box."""
 
 
 def _yaw_of(wxyz: np.ndarray) -> float:
@@ -35,17 +41,20 @@ class ScenePanel:
         self.position = server.gui.add_vector3("Position (m)", (0.0, 0.0, 0.3), step=0.05)
         self.yaw = server.gui.add_number("Yaw (deg)", 0.0, step=5.0)
         self.size = server.gui.add_vector3("New box size (m)", (0.6, 0.6, 0.6), min=(0.05, 0.05, 0.05), step=0.05)
+        self.apply = server.gui.add_button("Move to typed pose", hint="Move the selected box to the pose typed above")
         self.actions = server.gui.add_button_group("Box", ("Add", "Delete"))
         self.seed = server.gui.add_number("Random seed", 0, step=1)
         self.randomise = server.gui.add_button("Randomise scene (paper)")
         self.save = server.gui.add_button("Save scene (YAML)")
         self.load = server.gui.add_upload_button("Load scene (YAML)", mime_type="*/*")
         self.gizmo = server.scene.add_transform_controls("/scene/gizmo", scale=0.6, visible=False,
-                                                         active_axes=(True, True, False), disable_sliders=False)
+                                                         active_axes=(True, True, False), disable_sliders=False,
+                                                         depth_test=False)
         self.select.on_update(lambda _: self._on_select())
         self.gizmo.on_update(g(server, "move box")(lambda _: self._on_gizmo()))
-        self.position.on_update(g(server, "move box")(lambda _: self._on_typed()))
-        self.yaw.on_update(g(server, "move box")(lambda _: self._on_typed()))
+        self.position.on_update(lambda _: self._preview_typed())
+        self.yaw.on_update(lambda _: self._preview_typed())
+        self.apply.on_click(g(server, "move box")(lambda _: self._on_typed()))
         self.actions.on_click(g(server, "edit scene")(lambda e: self._on_action(e.target.value)))
         self.randomise.on_click(g(server, "randomise")(lambda _: runtime.randomise_scene(int(self.seed.value))))
         self.save.on_click(g(server, "save scene")(lambda e: self._download(e.client)))
@@ -67,28 +76,48 @@ class ScenePanel:
             return
         self._show_pose(self._boxes[box_id], move_gizmo=True)
 
+    def _lift(self, box_id: str) -> np.ndarray:
+        """Gizmo position minus box centre: straight up to above the box's top."""
+        box = self._boxes.get(box_id)
+        return np.array([0.0, 0.0, (box.size[2] / 2 if box else 0.3) + GIZMO_LIFT_M])
+
     def _on_gizmo(self) -> None:
         if self._syncing or self.selected is None:
             return
-        box = self.runtime.move_box(self.selected, tuple(self.gizmo.position), _yaw_of(np.asarray(self.gizmo.wxyz)))
+        centre = np.asarray(self.gizmo.position) - self._lift(self.selected)
+        box = self.runtime.move_box(self.selected, tuple(float(v) for v in centre),
+                                    _yaw_of(np.asarray(self.gizmo.wxyz)))
         self._boxes[box.id] = box
         self._show_pose(box, move_gizmo=False)  # the gizmo is where the user drags it
+
+    def _place_gizmo(self, position, yaw: float, box_id: str) -> None:
+        self.gizmo.position = tuple(np.asarray(position, float) + self._lift(box_id))
+        self.gizmo.wxyz = (math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2))
 
     def _show_pose(self, box: Box, move_gizmo: bool) -> None:
         """Show the box's pose in the typed fields (and on the gizmo) without firing their callbacks."""
         self._syncing = True
         try:
             if move_gizmo:
-                self.gizmo.position = box.position
-                self.gizmo.wxyz = (math.cos(box.yaw / 2), 0.0, 0.0, math.sin(box.yaw / 2))
+                self._place_gizmo(box.position, box.yaw, box.id)
             self.position.value = box.position
             self.yaw.value = round(math.degrees(box.yaw), 2)
         finally:
             self._syncing = False
 
-    def _on_typed(self) -> None:
+    def _preview_typed(self) -> None:
+        """Typed values move the gizmo only; the box moves on 'Move to typed pose'."""
         if self._syncing or self.selected is None:
             return
+        self._syncing = True
+        try:
+            self._place_gizmo(self.position.value, math.radians(self.yaw.value), self.selected)
+        finally:
+            self._syncing = False
+
+    def _on_typed(self) -> None:
+        if self.selected is None:
+            raise ValueError("select a box first")
         try:
             box = self.runtime.move_box(self.selected, tuple(self.position.value), math.radians(self.yaw.value))
             self._boxes[box.id] = box

@@ -31,10 +31,10 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from app.runtime import Runtime, RuntimeConfig
+from app.runtime import Runtime
 from bench.experiments.measures import PhantomCount, box_in_view, in_view, phantoms, run_metrics
 from bench.experiments.report_files import fmt, md_table, rate, save_figure, stat, write_json, write_markdown
-from bench.experiments.trials import Trial, experiment_args, quiet_logs, trial_results
+from bench.experiments.trials import Trial, experiment_args, quiet_logs, runtime_config, trial_results
 from core.sim.scene import Box, random_scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 
@@ -124,7 +124,7 @@ def trial(params: dict) -> dict:
     """One scene with one map: leg 1, the unseen move, leg 2; phantoms, time and path of leg 2."""
     scene = random_scene(params["seed"])
     moved = _to_move(scene.boxes)
-    rt = Runtime(RuntimeConfig(map_kind=params["map"], seed=params["seed"]), scene=scene,
+    rt = Runtime(runtime_config(map_kind=params["map"], seed=params["seed"]), scene=scene,
                  sequence=_sequence(scene.robot_start[:2], scene.goal))
     watch = _MoveUnseen(moved)
     run_log = rt.run_lockstep(3 * LEG_TIMEOUT_S + 5.0, on_control=watch)

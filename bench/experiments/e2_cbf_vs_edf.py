@@ -27,11 +27,10 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from app.runtime import Runtime, RuntimeConfig
+from app.runtime import Runtime
 from bench.experiments.measures import NEAR_OBSTACLE_M, run_metrics
 from bench.experiments.report_files import fmt, md_table, rate, save_figure, stat, write_json, write_markdown
-from bench.experiments.trials import Trial, experiment_args, quiet_logs, trial_results
-from core.params import HTMPCParams, SequencerParams
+from bench.experiments.trials import Trial, experiment_args, quiet_logs, runtime_config, trial_results, tunables
 from core.sim.scene import random_scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 
@@ -62,10 +61,10 @@ def trial(params: dict) -> dict:
         BaseSubtask(name="to the goal", target=BasePose(x=scene.goal[0], y=scene.goal[1], yaw_deg=0.0),
                     timeout_s=TIMEOUT_S)])
     perception_s, actuation_s = DELAYS_S.get(params["map"], (0.0, 0.0))
-    cfg = RuntimeConfig(map_kind=MAP_KIND[params["map"]], constraint=params["constraint"], seed=params["seed"],
-                        perception_delay_s=perception_s, actuation_delay_s=actuation_s,
-                        htmpc=replace(HTMPCParams(), gamma=params["gamma"]),
-                        sequencer=replace(SequencerParams(), nominal_speed_mps=params["speed"]))
+    cfg = runtime_config(map_kind=MAP_KIND[params["map"]], constraint=params["constraint"], seed=params["seed"],
+                         perception_delay_s=perception_s, actuation_delay_s=actuation_s,
+                         htmpc=replace(tunables().htmpc, gamma=params["gamma"]),
+                         sequencer=replace(tunables().sequencer, nominal_speed_mps=params["speed"]))
     rt = Runtime(cfg, scene=scene, sequence=seq)
     run_log = rt.run_lockstep(TIMEOUT_S + 2.0)
     metrics = run_metrics(rt.run_state, run_log, rt.world.collisions)
@@ -242,7 +241,7 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     pngs = figures_png(results, speeds, gamma_speed, args.out)
     settings = {"seeds": seeds, "speeds_mps": list(speeds), "maps": list(MAPS), "constraints": list(CONSTRAINTS),
                 "gammas": list(gammas), "gamma_sweep_speed_mps": gamma_speed,
-                "delta_safe_m": HTMPCParams().delta_safe_m, "timeout_s": TIMEOUT_S, "paper": PAPER}
+                "delta_safe_m": tunables().htmpc.delta_safe_m, "timeout_s": TIMEOUT_S, "paper": PAPER}
     write_json(args.out, NAME, settings, figures, results, args.quick)
     report(results, figures, speeds, gamma_speed, pngs, args.out, args.quick)
     print("\n".join(f"{k}: {fmt(v)}" for k, v in figures.items() if "mps_" not in k))

@@ -30,12 +30,11 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from app.runtime import Runtime, RuntimeConfig
+from app.runtime import Runtime
 from app.snapshot import RunState
 from bench.experiments.measures import body_distance, body_reach_m, collision_bodies, run_metrics
 from bench.experiments.report_files import fmt, md_table, rate, save_figure, stat, write_json, write_markdown
-from bench.experiments.trials import Trial, experiment_args, quiet_logs, trial_results
-from core.params import HTMPCParams, RobotParams, SequencerParams
+from bench.experiments.trials import Trial, experiment_args, quiet_logs, runtime_config, trial_results, tunables
 from core.robot.collision_spheres import SPHERES
 from core.sim.scene import PAPER_BOX_M, Box, Scene
 from core.sim.world import CollisionEvent, SceneEditError
@@ -66,13 +65,14 @@ PAPER = {"ee_min_avoided_m": 0.6, "base_min_avoided_m": 1.48, "bound_m": 0.5, "c
          "collision_free_five": 0.60}
 
 
-def _config(map_kind: str, seed: int) -> RuntimeConfig:
+def _config(map_kind: str, seed: int):
     perception, actuation = DELAYS[map_kind]
     base_r = next(s.radius_m for s in SPHERES if s.name == "base")
-    return RuntimeConfig(map_kind=map_kind, constraint="cbf", seed=seed, perception_delay_s=perception,
-                         actuation_delay_s=actuation, htmpc=replace(HTMPCParams(), gamma=GAMMA, delta_safe_m=DELTA_M),
-                         sequencer=replace(SequencerParams(), nominal_speed_mps=SPEED_MPS,
-                                           inflation_m=base_r + DELTA_M))
+    return runtime_config(map_kind=map_kind, constraint="cbf", seed=seed, perception_delay_s=perception,
+                          actuation_delay_s=actuation,
+                          htmpc=replace(tunables().htmpc, gamma=GAMMA, delta_safe_m=DELTA_M),
+                          sequencer=replace(tunables().sequencer, nominal_speed_mps=SPEED_MPS,
+                                            inflation_m=base_r + DELTA_M))
 
 
 def _runtime(map_kind: str, n_boxes: int, seed: int, floating: bool = False) -> Runtime:
@@ -204,7 +204,7 @@ def summarise(results: list[dict]) -> dict[str, float]:
                 figures[f"{m}_trials_{word}"] = float(len(rows))
                 figures[f"{m}_min_clearance_{word}_median_m"] = stat(rows, "min_clearance_m")
                 figures |= _beyond_reach(rows, figures.get(f"{m}_base_min_avoided_true_m", math.nan), f"{m}_{word}")
-    robot = RobotParams()
+    robot = tunables().robot
     delay = sum(DELAYS["object"])
     figures["stop_distance_no_delay_m"] = SPEED_MPS ** 2 / (2 * robot.base_accel_mps2)
     figures["stop_distance_with_delay_m"] = SPEED_MPS * delay + figures["stop_distance_no_delay_m"]

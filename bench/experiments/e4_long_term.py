@@ -34,11 +34,11 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from app.runtime import Runtime, RuntimeConfig
+from app.runtime import Runtime
 from app.snapshot import RunState
 from bench.experiments.measures import box_in_view, phantoms, run_metrics
 from bench.experiments.report_files import draw_boxes, fmt, md_table, save_figure, write_json, write_markdown
-from bench.experiments.trials import Trial, experiment_args, quiet_logs, trial_results
+from bench.experiments.trials import Trial, experiment_args, quiet_logs, runtime_config, trial_results
 from core.sim.scene import PAPER_BOX_M, Box, Scene, aisle_scene
 from tasks import BasePose, BaseSubtask, EEPose, EESubtask, TaskSequence, Tolerance
 from tasks.sequence_file import EXAMPLES_DIR, load_sequence
@@ -196,7 +196,7 @@ def trial(params: dict) -> dict:
         changes = change_points(params["laps"])
         plan = layouts(SEED, len(changes) + 1)
         laps, sc = _Laps(plan, changes), scene(plan[0])
-    rt = Runtime(RuntimeConfig(map_kind=params["map"], seed=SEED), scene=sc, sequence=seq)
+    rt = Runtime(runtime_config(map_kind=params["map"], seed=SEED), scene=sc, sequence=seq)
     outcomes = run_sequence(rt, seq, params["laps"] * 150.0, laps)
     if len(laps.lap_end_t) < params["laps"]:
         laps._end_lap(rt)

@@ -1,6 +1,8 @@
 """Running independent trials: in this process, on a local process pool (default) or on a Ray cluster.
 
 A trial is a top-level function of one plain `dict` of parameters returning a JSON-able `dict`;
+it builds its runtime with `runtime_config(...)`, which starts from the tunables of `--params FILE.yaml`
+(core/params_file.py; shipped to each worker with its trial), then applies what the experiment varies;
 `run_trials` calls it for every parameter set with a progress bar and returns the results in the
 order given, each merged with its parameters, `wall_s` and, when it raised, `error` (a crashed
 trial is reported, never dropped and never counted as a success).
@@ -22,13 +24,15 @@ import time
 import traceback
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from multiprocessing import get_context
 from pathlib import Path
 
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
 import core.sim  # noqa: F401  (chooses the GL backend once; spawned workers inherit MUJOCO_GL)
+from core.params_file import Tunables, load_params
+from core.yaml_validation import FileFormatError
 
 log = logging.getLogger(__name__)
 
@@ -42,10 +46,27 @@ TrialFn = Callable[[dict], dict]
 
 @dataclass(frozen=True)
 class Trial:
-    """One independent run: `fn(params)`; `fn` must be a module-level function (it is pickled by name)."""
+    """One independent run: `fn(params)`; `fn` must be a module-level function (it is pickled by name).
+    `tunables` (from `--params`) are in force while it runs (`tunables()`, `runtime_config`)."""
 
     fn: TrialFn
     params: dict = field(default_factory=dict)
+    tunables: Tunables | None = None
+
+
+_tunables = Tunables()
+
+
+def tunables() -> Tunables:
+    """The tunables of the trial running in this process (defaults unless `--params` gave a file)."""
+    return _tunables
+
+
+def runtime_config(**kwargs):
+    """`app.runtime.RuntimeConfig` with the trial's tunables; `kwargs` (what the experiment varies) win."""
+    from app.runtime import RuntimeConfig
+
+    return RuntimeConfig(**{**tunables().sections(), **kwargs})
 
 
 def experiment_args(name: str, description: str, argv: list[str] | None = None) -> argparse.Namespace:
@@ -58,10 +79,22 @@ def experiment_args(name: str, description: str, argv: list[str] | None = None) 
     parser.add_argument("--out", type=Path, default=REPORTS_DIR / name, help="report folder")
     parser.add_argument("--report-only", action="store_true",
                         help="no trials: rebuild figures and report from the JSON of the last run in --out")
+    parser.add_argument("--params", type=Path, default=None, metavar="FILE.yaml",
+                        help="tunables overriding core/params.py (the experiment's own settings still apply)")
     args = parser.parse_args(argv if argv is not None else sys.argv[1:])
     if args.workers < 1:
         parser.error("--workers must be at least 1")
+    try:
+        args.tunables = load_params(args.params) if args.params else None
+    except FileFormatError as err:
+        parser.error(str(err))
+    _use(args.tunables)  # in force here too (summaries), and shipped with each trial to the workers
     return args
+
+
+def _use(tuned: Tunables | None) -> None:
+    global _tunables
+    _tunables = tuned or Tunables()
 
 
 QUIET_LOGGERS = ("core.htmpc", "tasks.sequencer", "app.runtime")
@@ -92,11 +125,13 @@ def trial_results(args: argparse.Namespace, name: str, trials: list[Trial], desc
     """The experiment's results: its trials run now, or with `--report-only` those of the saved run."""
     if args.report_only:
         return load_trials(args.out, name, args.quick)
-    return run_trials(trials, args.workers, args.ray, description)
+    tuned = getattr(args, "tunables", None)
+    return run_trials([replace(t, tunables=tuned) for t in trials], args.workers, args.ray, description)
 
 
 def run_one(trial: Trial) -> dict:
     """Run a trial, catching its failure: the result carries the parameters, `wall_s` and any `error`."""
+    _use(trial.tunables)
     t0 = time.perf_counter()
     try:
         out = trial.fn(dict(trial.params))

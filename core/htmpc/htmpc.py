@@ -34,7 +34,7 @@ from core.htmpc.level_problem import (
 )
 from core.htmpc.ocp_qp import QPLayout, StructuredQP
 from core.htmpc.safety import brake_along, braking_plan, plan_is_safe
-from core.htmpc.tasks import BaseTask, EETask, Linearisation
+from core.htmpc.tasks import BaseTask, EEBaseFrameTask, EETask, Linearisation
 from core.params import HTMPCParams
 from core.robot.model import RobotModel
 from core.types import Plan, PlanStatus, References, RobotState
@@ -93,6 +93,8 @@ class HTMPC:
         if p.hierarchy not in ("lexicographic", "weighted"):
             raise ValueError(f"hierarchy must be 'lexicographic' or 'weighted', got {p.hierarchy!r}")
         self.tasks = {"base": BaseTask(p.Q_base), "ee": EETask(p.Q_ee)}
+        self.ee_base_task = EEBaseFrameTask(p.Q_ee)
+        """The EE task when the reference is in the base frame (`EEReference.frame == 'base'`)."""
         self.kinematics = HorizonKinematicsEvaluator(robot, p.N + 1)
         self.collision = CollisionConstraint(robot.sphere_radii, p.delta_safe_m, p.gamma, p.constraint)
         self._qps: dict[int, StructuredQP] = {}
@@ -147,8 +149,12 @@ class HTMPC:
         out = {}
         for name in order:
             ref = refs.base if name == "base" else refs.ee
-            out[name] = self.tasks[name].linearise(q_bar, kin, ref)
+            out[name] = self._task(name, refs).linearise(q_bar, kin, ref)
         return out
+
+    def _task(self, name: str, refs: References):
+        """The task object for `name` under these references (the base-frame EE task for a base-frame target)."""
+        return self.ee_base_task if name == "ee" and refs.ee.frame == "base" else self.tasks[name]
 
     # --- one SQP iteration -------------------------------------------------------------------------
 
@@ -248,8 +254,13 @@ class HTMPC:
         """Σ over tasks and nodes 1..N of ½‖e‖²_W with the exact (nonlinear) errors."""
         total = 0.0
         for name in order:
-            task = self.tasks[name]
-            e = task.compute_error(q, refs.base) if name == "base" else task.compute_error(kin, refs.ee)
+            task = self._task(name, refs)
+            if name == "base":
+                e = task.compute_error(q, refs.base)
+            elif task is self.ee_base_task:
+                e = task.compute_error(q, kin, refs.ee)
+            else:
+                e = task.compute_error(kin, refs.ee)
             total += 0.5 * float(np.sum(task.weights[: e.shape[1]] * e[1:] ** 2))
         return total
 

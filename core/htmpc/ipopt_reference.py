@@ -189,6 +189,8 @@ class IpoptReference:
         """
         compared: list[float] = []
         p, N = self.params, self.params.N
+        if refs.ee is not None and refs.ee.frame != "world":
+            raise NotImplementedError("the IPOPT reference tracks world-frame EE targets only")
         order = tuple(n for n in refs.order if (refs.base if n == "base" else refs.ee) is not None)
         has_rot = {"base": refs.base is not None and refs.base.yaw is not None,
                    "ee": refs.ee is not None and refs.ee.rotation is not None}

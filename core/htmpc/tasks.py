@@ -89,3 +89,65 @@ class EETask:
     def linearise(self, q: np.ndarray, kin: HorizonKinematics, ref: EEReference) -> Linearisation:
         e = self.compute_error(kin, ref)
         return Linearisation(self.name, e, self.compute_jacobian(kin, ref, e), self.weights[: e.shape[1]])
+
+
+def _yaw_rotations(yaw: np.ndarray) -> np.ndarray:
+    c, s = np.cos(yaw), np.sin(yaw)
+    R = np.zeros((len(yaw), 3, 3))
+    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = c, -s, s, c, 1.0
+    return R
+
+
+class EEBaseFrameTask:
+    """End-effector pose task in the base frame, for a hand held relative to the base while it drives:
+    e = [p_d^b − R_ψ^T (p − t) ; Log((R_ψ^T R)^T R_d^b)], with t = (x, y, 0) and R_ψ the base yaw, at every node.
+
+    A world target frozen at the current base pose would pull the base back to where it was; in the base frame
+    the error depends on the arm joints only: d p^b/dq = R_ψ^T (J_p − J_t − [ẑ]×(p − t) e_ψ^T) and the angular
+    Jacobian of R_ψ^T R is R_ψ^T (J_ω − ẑ e_ψ^T) (both vanish in x, y, ψ).
+    """
+
+    name = "ee"
+
+    def __init__(self, weights: tuple[float, ...]) -> None:
+        self.weights = np.asarray(weights, float)
+
+    @staticmethod
+    def _in_base(q: np.ndarray, kin: HorizonKinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """R_ψ (K,3,3), the EE position p^b (K,3) and rotation R^b (K,3,3) in the base frame."""
+        Rb = _yaw_rotations(q[:, 2])
+        d = kin.p - np.column_stack([q[:, :2], np.zeros(len(q))])
+        RbT = np.swapaxes(Rb, -1, -2)
+        return Rb, np.einsum("kij,kj->ki", RbT, d), RbT @ kin.R
+
+    def compute_error(self, q: np.ndarray, kin: HorizonKinematics, ref: EEReference) -> np.ndarray:
+        K = kin.p.shape[0]
+        _, pb, Rb_ee = self._in_base(q, kin)
+        ep = _broadcast(ref.position, K) - pb
+        if ref.rotation is None:
+            return ep
+        er = log3(np.swapaxes(Rb_ee, -1, -2) @ _broadcast(ref.rotation, K))
+        return np.column_stack([ep, er])
+
+    def compute_jacobian(self, q: np.ndarray, kin: HorizonKinematics, ref: EEReference,
+                         e: np.ndarray | None = None) -> np.ndarray:
+        Rb, _, Rb_ee = self._in_base(q, kin)
+        RbT = np.swapaxes(Rb, -1, -2)
+        d = kin.p - np.column_stack([q[:, :2], np.zeros(len(q))])
+        Jrel = kin.Jp.copy()
+        Jrel[:, 0, 0] -= 1.0
+        Jrel[:, 1, 1] -= 1.0
+        Jrel[:, :, 2] -= np.column_stack([-d[:, 1], d[:, 0], np.zeros(len(q))])  # [ẑ]× d
+        Jp = -RbT @ Jrel
+        if ref.rotation is None:
+            return Jp
+        if e is None:
+            e = self.compute_error(q, kin, ref)
+        Jw = kin.Jw.copy()
+        Jw[:, 2, 2] -= 1.0
+        Jr = -left_jacobian_inverse(e[:, 3:]) @ np.swapaxes(Rb_ee, -1, -2) @ RbT @ Jw
+        return np.concatenate([Jp, Jr], axis=1)
+
+    def linearise(self, q: np.ndarray, kin: HorizonKinematics, ref: EEReference) -> Linearisation:
+        e = self.compute_error(q, kin, ref)
+        return Linearisation(self.name, e, self.compute_jacobian(q, kin, ref, e), self.weights[: e.shape[1]])

@@ -48,3 +48,20 @@ def test_undo_redo():
     h.push(add_base_goal(a, 5, 5, None))
     assert not h.can_redo and h.current != b
 
+
+
+def test_selection_follows_the_subtask_through_undo():
+    from app.ui.authoring import describe_change, follow_selection
+
+    abc = TaskSequence(subtasks=[add_base_goal(TaskSequence(), x, 0, None, name=n).subtasks[0]
+                                 for n, x in (("A", 1), ("B", 2), ("C", 3))])
+    bac = move_subtask(abc, 0, 1)
+    assert follow_selection(bac, abc, 1) == 0  # A stays selected where the undo put it
+    assert describe_change(bac, abc) == "subtask 1 'A' changed"
+    ab = delete_subtask(abc, 2)
+    assert follow_selection(ab, abc, 1) == 1  # B stays selected after the delete of C is undone
+    assert describe_change(ab, abc) == "subtask 3 'C' back"
+    assert describe_change(abc, ab) == "subtask 3 'C' removed"
+    renamed = replace_subtask(abc, 1, name="B2")
+    assert follow_selection(renamed, abc, 1) == 1  # the renamed subtask is the changed one
+    assert follow_selection(abc, TaskSequence(), 0) is None

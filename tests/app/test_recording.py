@@ -145,3 +145,24 @@ def test_sigkill_while_recording_loses_only_the_unfinished_tail(tmp_path) -> Non
     print(f"\nkill test: {len(after)} snapshots ({after[0].state.t:.1f}–{after[-1].state.t:.1f} s sim) loaded, "
           f"{after.dropped_bytes} of {after.file_bytes} bytes dropped; {len(before)} were on disk "
           f"{0.3:.1f} s before the kill")
+
+
+def test_problems_and_moved_goals_survive_the_recording(recorded) -> None:
+    """What the studio shows beside the plan (the problems panel, a goal the planner moved, time left)
+    comes back from a recording as it was published."""
+    from dataclasses import replace
+
+    from app.problems import ProblemKind, ProblemLog
+    from app.recording_topics import snapshot_from_messages, snapshot_messages
+    from tasks.sequencer import GoalShift
+
+    snap = read_recording(recorded[0])[-1]
+    problems = ProblemLog()
+    problems.record(ProblemKind.QP_FAILURE, 1.5, "level 1 QP failed (1)")
+    problems.record(ProblemKind.QP_FAILURE, 2.5, "level 2 QP failed (1)")
+    moved = replace(snap.progress[0], goal_shift=GoalShift((1.0, 0.0), (1.05, 0.1)), timeout_s=30.0)
+    snap = replace(snap, problems=problems.counts(), progress=(moved,))
+    back = snapshot_from_messages(dict(json.loads(json.dumps(snapshot_messages(snap, with_points=False)))))
+    assert back.problems == snap.problems and back.problems[0].count == 2
+    assert back.progress[0].goal_shift == GoalShift((1.0, 0.0), (1.05, 0.1))
+    assert back.progress[0].timeout_s == 30.0

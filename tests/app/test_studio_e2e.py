@@ -96,7 +96,8 @@ def test_author_run_and_move_a_box_in_the_browser(studio, page):
     page.locator("label", has_text="Box").first.locator("xpath=ancestor::p/../..").locator("input").first.click()
     page.get_by_role("option", name="mover").click()
     set_vector(page, "Position (m)", (1.2, 3.0, 0.3))
-    wait_for(lambda: runtime.world.box("mover").position == (1.2, 3.0, 0.3), 10, "the box to move in MuJoCo")
+    page.get_by_role("button", name="Move to typed pose").click()
+    wait_for(lambda: runtime.world.box("mover").position == (1.2, 3.0, 0.3), 20, "the box to move in MuJoCo")
     page.screenshot(path=str(ARTIFACTS / "studio_box_moved.png"))
 
     wait_for(lambda: runtime.run_state in (RunState.FINISHED, RunState.FAILED), 120, "the sequence to end")
@@ -118,9 +119,10 @@ def test_emergency_stop_hotkey_and_errors_as_notifications(studio, page):
     page.get_by_role("tab", name="Scene edits").click()
     page.locator("label", has_text="Box").first.locator("xpath=ancestor::p/../..").locator("input").first.click()
     page.get_by_role("option", name="mover").click()
-    set_vector(page, "Position (m)", (0.0, 0.0, 0.3))  # x is applied (free space), then y would hit the robot
-    page.get_by_text("overlap the robot").first.wait_for(timeout=10_000)
-    assert runtime.world.box("mover").position == (0.0, 2.0, 0.3)  # the refused edit changed nothing
+    set_vector(page, "Position (m)", (0.0, 0.0, 0.3))  # into the robot
+    page.get_by_role("button", name="Move to typed pose").click()
+    page.get_by_text("overlap the robot").first.wait_for(timeout=30_000)
+    assert runtime.world.box("mover").position == (1.2, 2.0, 0.3)  # the refused edit changed nothing
     # Escape stops the robot
     page.mouse.click(300, 600)  # focus the 3D view (not a text field) so the hotkey reaches viser
     page.keyboard.press("Escape")

@@ -115,3 +115,49 @@ def test_empty_sequence_returns_nothing(robot):
     s = Sequencer(robot, TaskSequence())
     assert s.update(state_at(0, 0), None, 0.0) is None
     assert s.status_line() == "no subtasks"
+
+
+def test_a_moved_goal_completes_where_the_base_was_sent(robot):
+    """The goal is 0.7 m from a box (the base keeps 0.8 m): the planner moves it to a free cell, and reaching
+    that cell completes the subtask (judged against the authored goal it timed out 0.1 m short)."""
+    box = np.random.default_rng(1).uniform([3.0, 0.7, 0.1], [3.4, 1.1, 0.6], (400, 3))
+    seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=3.2, y=0.0), timeout_s=30.0,
+                                             tolerance=Tolerance(position_m=0.05))])
+    s = Sequencer(robot, seq)
+    assert s.update(state_at(0.0, 0.0), box, 0.0) is not None
+    shift = s.progress[0].goal_shift
+    assert shift is not None and shift.original == (3.2, 0.0)
+    assert 0.05 < shift.distance_m < 0.3 and shift.driven[1] < 0.0  # away from the box
+    assert f"goal moved {shift.distance_m:.2f} m" in s.progress[0].message
+    assert s.path[-1] == pytest.approx(shift.driven)
+    at = state_at(*shift.driven)
+    assert s.update(at, box, 1.0) is None and s.finished
+    no_box = Sequencer(robot, seq)
+    no_box.update(state_at(0.0, 0.0), np.zeros((0, 3)), 0.0)
+    assert no_box.progress[0].goal_shift is None
+
+
+def test_ee_target_in_the_base_frame(robot):
+    """An EE target in the base frame is judged relative to the base, wherever it stands; the references say
+    so (the controller holds it relative to the base over the horizon); the base holds its stance."""
+    st = state_at(2.0, -1.0, 1.0)
+    T_rel = np.linalg.inv(robot.frame_pose(st.q, "mobile_base")) @ robot.ee_pose(st.q)
+    target = EEPose(position=tuple(T_rel[:3, 3]), frame="base")
+    seq = TaskSequence(subtasks=[EESubtask(target=target, tolerance=Tolerance(position_m=0.01), dwell_s=0.5)])
+    s = Sequencer(robot, seq)
+    refs_state = state_at(5.0, 3.0, -2.0)  # elsewhere: the target moves with the base
+    refs = s.update(refs_state, None, 0.0)
+    assert refs.ee.frame == "base" and refs.ee.position[0] == pytest.approx(T_rel[:3, 3])
+    np.testing.assert_allclose(refs.base.xy[0], [5.0, 3.0])  # the base holds where it is
+    assert s.progress[0].position_error_m < 1e-9  # the arm pose is the same relative to the base
+    assert s.update(refs_state, None, 0.6) is None and s.finished
+
+
+def test_base_subtask_holds_the_hand_in_the_base_frame(robot):
+    hold = EEPose(position=(0.4, -0.55, 1.0), rpy_deg=(0.0, 0.0, -90.0), frame="base")
+    seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=4.0, y=0.0), ee=hold)])
+    refs = Sequencer(robot, seq).update(state_at(0.0, 0.0), np.zeros((0, 3)), 0.0)
+    assert refs.order == ("base", "ee") and refs.ee.frame == "base"
+    np.testing.assert_allclose(refs.ee.position, [[0.4, -0.55, 1.0]])
+    np.testing.assert_allclose(refs.ee.rotation[0], hold.rotation())
+    assert refs.base.xy.shape == (11, 2)  # the base still follows its path

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Depends
+from fastapi import APIRouter, Depends, Request
 
 from app.bridge.auth import require_token
 from app.bridge.dependencies import Attached
 from app.bridge.errors import file_problems
 from app.bridge.protocol import ErrorOut, SequenceIn, SequenceOut, ValidationOut
 from app.bridge.routes import AUTH_ERRORS
+from app.target_check import check_targets
 from tasks.schema import TaskSequence
 from tasks.sequence_file import FileFormatError, parse_sequence, sequence_to_yaml
 
@@ -16,9 +17,9 @@ router = APIRouter(prefix="/api/sequence", tags=["sequence"])
 NO_RUNTIME = {503: {"model": ErrorOut, "description": "No runtime is attached to the bridge"}}
 
 
-def _out(sequence: TaskSequence, version: int) -> SequenceOut:
+def _out(sequence: TaskSequence, version: int, warnings: list[str] | None = None) -> SequenceOut:
     return SequenceOut(name=sequence.name, version=version, subtasks=len(sequence.subtasks),
-                       yaml=sequence_to_yaml(sequence))
+                       yaml=sequence_to_yaml(sequence), warnings=warnings or [])
 
 
 @router.get("", responses=NO_RUNTIME)
@@ -30,21 +31,29 @@ def get_sequence(attached: Attached) -> SequenceOut:
 
 @router.post("/validate", dependencies=[Depends(require_token)],
              responses={k: v for k, v in AUTH_ERRORS.items() if k != 503})
-def validate(body: SequenceIn) -> ValidationOut:
-    """Check YAML text against the sequence schema without loading it."""
+def validate(request: Request, body: SequenceIn) -> ValidationOut:
+    """Check YAML text against the sequence schema, and its targets against the robot and the attached runtime's
+    scene (without a runtime, the schema only), without loading it."""
+    attachment = request.app.state.attachment
     try:
         sequence = parse_sequence(body.yaml, "request")
-    except FileFormatError as err:
+        warnings = [] if attachment is None else check_targets(
+            attachment.runtime, sequence, scene_may_change=body.scene_may_change, source="request", text=body.yaml)
+    except FileFormatError as err:  # a TargetError is one too
         return ValidationOut(valid=False, problems=file_problems(err))
-    return ValidationOut(valid=True, name=sequence.name, subtasks=len(sequence.subtasks))
+    return ValidationOut(valid=True, name=sequence.name, subtasks=len(sequence.subtasks),
+                         warnings=[str(w) for w in warnings])
 
 
 @router.put("", dependencies=[Depends(require_token)], responses=AUTH_ERRORS)
 def load(attached: Attached, body: SequenceIn) -> SequenceOut:
     """Load YAML text as the authored sequence (a running sequence keeps its copy until the next start).
 
-    422 lists every problem with its field and line; nothing is loaded then."""
+    422 lists every problem with its field and line (schema, and targets the robot cannot reach or that are too
+    close to a box, each with the nearest acceptable value); nothing is loaded then."""
     sequence = parse_sequence(body.yaml, "request")
+    warnings = check_targets(attached.runtime, sequence, scene_may_change=body.scene_may_change, source="request",
+                             text=body.yaml)
     attached.runtime.set_sequence(sequence)
     attached.invalidate()
-    return _out(sequence, attached.runtime.sequence_version)
+    return _out(sequence, attached.runtime.sequence_version, [str(w) for w in warnings])

@@ -11,7 +11,7 @@ from tests.app.bridge.conftest import EXAMPLE_SEQUENCE as EXAMPLE
 
 def test_validate_accepts_an_example_sequence(api: httpx.Client) -> None:
     out = api.post("/api/sequence/validate", json={"yaml": EXAMPLE}).json()
-    assert out == {"valid": True, "name": "two pick-up stops", "subtasks": 4, "problems": []}
+    assert out == {"valid": True, "name": "two pick-up stops", "subtasks": 4, "problems": [], "warnings": []}
 
 
 def test_validate_names_field_and_line(api: httpx.Client) -> None:

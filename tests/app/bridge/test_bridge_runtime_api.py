@@ -38,6 +38,30 @@ def test_loading_a_sequence_replaces_it_and_a_bad_one_changes_nothing(api: httpx
     assert sim_runtime.sequence.name == "two pick-up stops"
 
 
+INTO_BOX_A = """name: into a box
+subtasks:
+- name: onto box_a
+  kind: base
+  target: {x: 2.2, y: 1.3}
+"""
+
+
+def test_targets_are_checked_against_the_scene(api: httpx.Client, sim_runtime) -> None:
+    """The default scene's box_a stands at (2.2, 1.3): a base goal there is refused with its line and the nearest
+    acceptable goal; told that the scene will change, the bridge loads it with a warning."""
+    version = sim_runtime.sequence_version
+    refused = api.put("/api/sequence", json={"yaml": INTO_BOX_A})
+    assert refused.status_code == 422
+    (problem,) = refused.json()["problems"]
+    assert problem["field"] == "subtasks.0.target" and problem["line"] == 5
+    assert "box_a" in problem["message"] and "nearest acceptable: (" in problem["message"]
+    assert sim_runtime.sequence_version == version
+    checked = api.post("/api/sequence/validate", json={"yaml": INTO_BOX_A}).json()
+    assert not checked["valid"] and checked["problems"][0]["line"] == 5
+    loaded = api.put("/api/sequence", json={"yaml": INTO_BOX_A, "scene_may_change": True}).json()
+    assert loaded["version"] == version + 1 and "scene may change" in loaded["warnings"][0]
+
+
 def test_run_control_follows_the_runtime(api: httpx.Client, sim_runtime) -> None:
     assert api.post("/api/run/start").json()["run_state"] == "running"
     assert api.post("/api/run/step").status_code == 409

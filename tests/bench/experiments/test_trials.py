@@ -48,3 +48,36 @@ def test_command_line_defaults_and_bad_workers(tmp_path):
     assert args.quick and args.workers == 2 and args.ray is None and args.out == tmp_path
     with pytest.raises(SystemExit):
         experiment_args("e0", "test", ["--workers", "0"])
+
+
+def tuned_gamma(params: dict) -> dict:
+    from bench.experiments.trials import runtime_config, tunables
+
+    return {"gamma": tunables().htmpc.gamma, "config_gamma": runtime_config(map_kind="voxel").htmpc.gamma}
+
+
+@pytest.fixture
+def default_tunables_after():
+    yield
+    experiment_args("e0", "test", [])  # back to the defaults in this process
+
+
+def test_params_file_reaches_the_trials_in_every_worker(tmp_path, default_tunables_after):
+    from bench.experiments.trials import trial_results
+
+    params = tmp_path / "p.yaml"
+    params.write_text("htmpc: {gamma: 0.25}\n")
+    args = experiment_args("e0", "test", ["--params", str(params), "--workers", "2", "--out", str(tmp_path)])
+    trials = [Trial(tuned_gamma, {"i": i}) for i in range(3)]
+    for workers in (1, 2):
+        args.workers = workers
+        out = trial_results(args, "e0", trials, "tuned")
+        assert [(r["gamma"], r["config_gamma"]) for r in out] == [(0.25, 0.25)] * 3
+
+
+def test_bad_params_file_stops_the_experiment_with_field_and_line(tmp_path, capsys):
+    params = tmp_path / "p.yaml"
+    params.write_text("htmpc:\n  gamma: -1\n")
+    with pytest.raises(SystemExit):
+        experiment_args("e0", "test", ["--params", str(params)])
+    assert "line 2: htmpc.gamma" in capsys.readouterr().err

@@ -82,3 +82,28 @@ def test_cbf_slows_down_near_obstacles_more_than_edf(wall_runs):
     edf = wall_runs[("edf", None)][1]
     assert speed_near_wall(cbf, 0.6) < speed_near_wall(edf, 0.6)
     assert min(cbf.clearance) > min(edf.clearance)
+
+
+def test_hand_held_beside_the_base_while_it_drives(robot):
+    """A base-frame EE reference: the hand goes beside the base and stays there while the base drives 3 m and
+    turns. The same pose given as a world target at the start pose would pull the hand back to where it was."""
+    world = SimWorld(robot, scene=Scene())
+    world.set_robot(READY_Q)
+    Rb = pin.utils.rpyToMatrix(0.0, 0.0, -np.pi / 2)
+    pb = np.array([0.4, -0.55, 1.0])
+
+    def refs(t: float) -> References:
+        s = min(0.5 * max(t - 4.0, 0.0), 3.0)  # the arm settles, then the base drives 3 m at 0.5 m/s, turning 45°
+        return References(order=("base", "ee"), base=BaseReference(np.array([[s, 0.0]]), np.array([np.pi / 4 * s / 3])),
+                          ee=EEReference(pb[None], Rb[None], frame="base"), switched=t == 0.0)
+
+    log = run(world, HTMPC(robot), refs, 11.0, use_edf=False)
+    errors = []
+    for t, q in zip(log.t, log.q, strict=True):
+        T_rel = np.linalg.inv(robot.frame_pose(q, "mobile_base")) @ robot.ee_pose(q)
+        errors.append((t, np.linalg.norm(T_rel[:3, 3] - pb), np.degrees(np.linalg.norm(log3(T_rel[:3, :3].T @ Rb)))))
+    driving = [(e, a) for t, e, a in errors if t > 4.0]
+    assert max(e for e, _ in driving) < 0.02 and max(a for _, a in driving) < 2.0
+    q = world.state().q
+    assert np.hypot(q[0] - 3.0, q[1]) < 0.05 and abs(q[2] - np.pi / 4) < 0.05
+    assert all(p.status.value in ("ok", "ok_with_slack") for p in log.plans)

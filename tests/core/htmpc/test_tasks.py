@@ -4,7 +4,7 @@ import numpy as np
 import pinocchio as pin
 
 from core.htmpc.horizon_kinematics import HorizonKinematicsEvaluator
-from core.htmpc.tasks import BaseTask, EETask
+from core.htmpc.tasks import BaseTask, EEBaseFrameTask, EETask
 from core.types import BaseReference, EEReference
 
 
@@ -48,3 +48,39 @@ def test_ee_jacobian_matches_finite_differences(robot):
         plus, minus = task.compute_error(ev((q0 + dq)[None]), ref)[0], task.compute_error(ev((q0 - dq)[None]), ref)[0]
         fd = (plus - minus) / (2 * eps)
         np.testing.assert_allclose(J[:, j], fd, atol=1e-6)
+
+
+def test_base_frame_ee_error_is_the_pose_relative_to_the_base(robot):
+    rng = np.random.default_rng(4)
+    q = np.array([robot.random_q(rng) for _ in range(3)])
+    kin = HorizonKinematicsEvaluator(robot, 3)(q)
+    pd, Rd = np.array([0.3, -0.6, 0.9]), pin.utils.rpyToMatrix(0.0, 0.2, -1.5)
+    e = EEBaseFrameTask((1,) * 6).compute_error(q, kin, EEReference(pd[None], Rd[None], frame="base"))
+    for k in range(3):
+        T_base = robot.frame_pose(q[k], "mobile_base")
+        T_rel = np.linalg.inv(T_base) @ robot.ee_pose(q[k])
+        np.testing.assert_allclose(e[k, :3], pd - T_rel[:3, 3], atol=1e-12)
+        np.testing.assert_allclose(e[k, 3:], pin.log3(T_rel[:3, :3].T @ Rd), atol=1e-9)
+    moved = q.copy()
+    moved[:, :3] += [1.5, -2.0, 0.7]  # the base drives and turns: the base-frame error does not change
+    e2 = EEBaseFrameTask((1,) * 6).compute_error(moved, HorizonKinematicsEvaluator(robot, 3)(moved),
+                                                 EEReference(pd[None], Rd[None], frame="base"))
+    np.testing.assert_allclose(e2, e, atol=1e-9)
+
+
+def test_base_frame_ee_jacobian_matches_finite_differences(robot):
+    rng = np.random.default_rng(5)
+    q0 = robot.random_q(rng)
+    task = EEBaseFrameTask((1,) * 6)
+    ev = HorizonKinematicsEvaluator(robot, 1)
+    for rot in (None, pin.utils.rpyToMatrix(0.1, 0.4, -0.7)[None]):
+        ref = EEReference(np.array([[0.5, 0.2, 1.0]]), rot, frame="base")
+        J = task.compute_jacobian(q0[None], ev(q0[None]), ref)[0]
+        eps = 1e-6
+        for j in range(9):
+            dq = np.zeros(9)
+            dq[j] = eps
+            plus = task.compute_error((q0 + dq)[None], ev((q0 + dq)[None]), ref)[0]
+            minus = task.compute_error((q0 - dq)[None], ev((q0 - dq)[None]), ref)[0]
+            np.testing.assert_allclose(J[:, j], (plus - minus) / (2 * eps), atol=1e-6)
+        np.testing.assert_allclose(J[:, :3], 0.0, atol=1e-9)  # the base's own joints do not move it

@@ -1,0 +1,104 @@
+"""What went wrong during a run, counted by kind: the studio's problems panel and the run report read it.
+
+The runtime records (`record(kind, t, message)`) from a few hook points: every controller step
+(`observe_plan`: QP failures, fallback plans, slow solves), a crashed loop (fault), the bridge's stale
+state, a live loop that missed its period (watchdog). Each kind keeps its count, first and last time and
+last message; the log is thread-safe (the loops and the bridge record from their own threads).
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+from enum import StrEnum
+
+from core.types import Plan, PlanStatus
+
+
+class ProblemKind(StrEnum):
+    QP_FAILURE = "qp_failure"
+    FALLBACK = "fallback"
+    SLOW_SOLVE = "slow_solve"
+    FAULT = "fault"
+    STALE_STATE = "stale_state"
+    WATCHDOG = "watchdog"
+
+    @property
+    def label(self) -> str:
+        return _LABELS[self]
+
+
+_LABELS = {ProblemKind.QP_FAILURE: "QP failures", ProblemKind.FALLBACK: "fallback plans",
+           ProblemKind.SLOW_SOLVE: "slow solves", ProblemKind.FAULT: "faults", ProblemKind.STALE_STATE: "stale state",
+           ProblemKind.WATCHDOG: "watchdog events"}
+
+NORMAL_STOPS = ("no task",)
+"""Braking plans that are not problems: nothing to do (the sequence ended or has not started)."""
+
+
+@dataclass(frozen=True)
+class ProblemCount:
+    """How often one kind of problem happened: count, first and last sim time (s), the last message."""
+
+    kind: ProblemKind
+    count: int
+    first_t: float
+    last_t: float
+    last_message: str
+
+
+class ProblemLog:
+    """Counts of problems by kind; `slow_solve_ms` is the solve time from which a step counts as slow."""
+
+    def __init__(self, slow_solve_ms: float = 100.0) -> None:
+        self.slow_solve_ms = slow_solve_ms
+        self._lock = threading.Lock()
+        self._counts: dict[ProblemKind, ProblemCount] = {}
+
+    def record(self, kind: ProblemKind, t: float, message: str) -> None:
+        """Count one problem of `kind` at sim time t (s)."""
+        kind = ProblemKind(kind)
+        with self._lock:
+            old = self._counts.get(kind)
+            first = t if old is None else old.first_t
+            self._counts[kind] = ProblemCount(kind, 1 if old is None else old.count + 1, first, t, message)
+
+    def observe_plan(self, plan: Plan, t: float, solve_ms: float | None = None) -> None:
+        """Count what one controller step shows: a failed QP (even when an earlier level's plan was kept), a
+        fallback (braking) plan, a solve slower than `slow_solve_ms` (a discarded one says so in its message)."""
+        message = plan.message or plan.status.value
+        if "QP failed" in message:
+            self.record(ProblemKind.QP_FAILURE, t, message)
+        if plan.status in (PlanStatus.FALLBACK, PlanStatus.STOPPING, PlanStatus.FAILED) and \
+                not any(message.startswith(s) for s in NORMAL_STOPS):
+            self.record(ProblemKind.FALLBACK, t, message)
+        if "solve took" in message:
+            self.record(ProblemKind.SLOW_SOLVE, t, message)
+        elif solve_ms is not None and solve_ms > self.slow_solve_ms:
+            self.record(ProblemKind.SLOW_SOLVE, t, f"solve took {solve_ms:.0f} ms (> {self.slow_solve_ms:.0f} ms)")
+
+    def counts(self) -> tuple[ProblemCount, ...]:
+        """Every kind seen so far, in the order of `ProblemKind`."""
+        with self._lock:
+            return tuple(self._counts[k] for k in ProblemKind if k in self._counts)
+
+    def count(self, kind: ProblemKind) -> int:
+        with self._lock:
+            c = self._counts.get(ProblemKind(kind))
+            return 0 if c is None else c.count
+
+    @property
+    def total(self) -> int:
+        return sum(c.count for c in self.counts())
+
+    def to_json(self) -> dict[str, dict]:
+        """{kind: {count, first_t, last_t, last_message}} for the run report."""
+        return {c.kind.value: {"count": c.count, "first_t": c.first_t, "last_t": c.last_t,
+                               "last_message": c.last_message} for c in self.counts()}
+
+
+def summary_line(counts: tuple[ProblemCount, ...]) -> str:
+    """'2 QP failures (last at 12.3 s), 1 slow solves (...)', or 'no problems'."""
+    if not counts:
+        return "no problems"
+    return ", ".join(f"{c.count} {c.kind.label} (last at {c.last_t:.1f} s)" for c in counts)

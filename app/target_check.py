@@ -1,0 +1,61 @@
+"""Target checks (`tasks.validation`) against what a runtime knows of its scene: the simulated boxes, or
+on a real robot the boxes of the object map. The studio, the bridge and the CLI call `check_targets`."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from core.params import HTMPCParams
+from core.types import ObjectMapSnapshot, ObjectStatus
+from tasks.schema import TaskSequence
+from tasks.validation import Obstacle, RobotEnvelope, TargetFinding, box_distance, require_valid
+
+
+def _mapped(object_map: ObjectMapSnapshot | None) -> tuple[Obstacle, ...]:
+    """Live objects of an object map as boxes (id `object_<n>`)."""
+    if object_map is None:
+        return ()
+    out = []
+    for obj in object_map.objects:
+        if obj.status == ObjectStatus.ACTIVE:
+            R = obj.pose[:3, :3]
+            out.append(Obstacle(f"object_{obj.id}", tuple(obj.pose[:3, 3]), tuple(obj.extent),
+                                float(np.arctan2(R[1, 0], R[0, 0]))))
+    return tuple(out)
+
+
+def scene_obstacles(runtime) -> tuple[Obstacle, ...]:
+    """Boxes of the simulated world, else the live objects of the runtime's map."""
+    world = getattr(runtime, "world", None)
+    if world is not None:
+        return tuple(Obstacle(b.id, b.position, b.size, b.yaw) for b in world.boxes())
+    return _mapped(runtime.snapshot().object_map)  # the snapshot reads the map under the map's lock
+
+
+def snapshot_obstacles(snap) -> tuple[Obstacle, ...]:
+    """The boxes a snapshot shows: the simulated ones, else the mapped ones."""
+    if snap.boxes:
+        return tuple(Obstacle(b.id, b.position, b.size, b.yaw) for b in snap.boxes)
+    return _mapped(snap.object_map)
+
+
+def nearest_obstacle(xy: np.ndarray, obstacles: tuple[Obstacle, ...]) -> str | None:
+    """Id of the box whose footprint is nearest to xy (what a moved goal was moved away from)."""
+    if not obstacles:
+        return None
+    d = [float(box_distance(o, np.asarray(xy, float)[:2])) for o in obstacles]
+    return obstacles[int(np.argmin(d))].id
+
+
+def envelope_of(runtime) -> RobotEnvelope:
+    """The robot's envelope with the delta_safe the runtime's controller keeps."""
+    htmpc = getattr(runtime.config, "htmpc", None) or HTMPCParams()
+    return RobotEnvelope.of(runtime.robot, htmpc.delta_safe_m)
+
+
+def check_targets(runtime, sequence: TaskSequence, *, scene_may_change: bool = False,
+                  indices: list[int] | None = None, source: str = "sequence",
+                  text: str | None = None) -> list[TargetFinding]:
+    """`tasks.validation.require_valid` in the runtime's scene: raises `TargetError`, returns the warnings."""
+    return require_valid(sequence, scene_obstacles(runtime), envelope_of(runtime), scene_may_change=scene_may_change,
+                         indices=indices, source=source, text=text)

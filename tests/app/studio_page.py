@@ -1,0 +1,91 @@
+"""Helpers for browser tests of the studio: a live studio on a free port, GUI rows found by their label."""
+
+from __future__ import annotations
+
+import logging
+import re
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import pytest
+
+from app.runtime import Runtime
+from app.ui.studio import Studio
+from tests.app.conftest import free_port
+
+
+@contextmanager
+def live_studio(runtime: Runtime) -> Iterator[Studio]:
+    """The studio of a live runtime; both stopped afterwards."""
+    studio = Studio(runtime, port=free_port())
+    runtime.start_live()
+    try:
+        yield studio
+    finally:
+        runtime.shutdown()
+        studio.close()
+
+
+def row(page, label: str):
+    """The GUI row whose label is `label` (exact text)."""
+    label_el = page.locator("label").filter(has_text=re.compile(f"^{re.escape(label)}$")).first
+    label_el.wait_for(timeout=30_000)
+    return label_el.locator("xpath=ancestor::p/../..")
+
+
+def row_inputs(page, label: str):
+    """The input elements of a GUI row, found by its label text."""
+    return row(page, label).locator("input")
+
+
+def set_vector(page, label: str, values) -> None:
+    inputs = row_inputs(page, label)
+    for i, v in enumerate(values):
+        field = inputs.nth(i)
+        field.fill(str(v))
+        field.press("Enter")
+    page.wait_for_timeout(300)
+
+
+def choose(page, label: str, option: str) -> None:
+    """Pick `option` in the dropdown of row `label`."""
+    row_inputs(page, label).first.click()
+    page.get_by_role("option", name=option, exact=True).click()
+
+
+def wait_for(predicate, timeout_s: float, what: str) -> None:
+    deadline = time.time() + timeout_s
+    while time.time() < deadline:
+        if predicate():
+            return
+        time.sleep(0.05)
+    pytest.fail(f"timed out waiting for {what}")
+
+
+def open_studio(page, studio: Studio) -> None:
+    page.set_default_timeout(60_000)
+    page.goto(studio.url)
+    page.get_by_text("EMERGENCY STOP").first.wait_for(timeout=60_000)
+
+
+class FailedActions(logging.Handler):
+    """Collects the 'X failed: reason' warnings of GUI callbacks (each is also shown as a notification)."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage())
+
+    @classmethod
+    @contextmanager
+    def watching(cls, logger: str = "app.ui.notify") -> Iterator[FailedActions]:
+        handler = cls()
+        log = logging.getLogger(logger)
+        log.addHandler(handler)
+        try:
+            yield handler
+        finally:
+            log.removeHandler(handler)

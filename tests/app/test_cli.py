@@ -1,0 +1,64 @@
+"""The command line: --params reaches every part of the runtime, bad files and unacceptable targets are clear
+errors (field and line) before anything runs."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from app.cli import _config, build_parser
+from tasks.sequence_file import EXAMPLES_DIR
+from tests.app.conftest import ROOT
+
+NAV = str(EXAMPLES_DIR / "navigation_through_boxes.yaml")
+
+
+def run_cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "app", *args], cwd=ROOT, capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def test_params_file_sets_the_runtime_config(tmp_path):
+    path = tmp_path / "p.yaml"
+    path.write_text("htmpc: {gamma: 0.5, constraint: edf}\nsim:\n  hand_camera: {range_m: 2.0}\n"
+                    "robot: {base_speed_mps: 0.7}\nmapping: {tau_m: 0.3}\nsequencer: {nominal_speed_mps: 0.4}\n")
+    config = _config(build_parser().parse_args(["run", "--headless", "--sequence", NAV, "--params", str(path)]))
+    assert (config.htmpc.gamma, config.constraint, config.sim.hand_camera.range_m) == (0.5, "edf", 2.0)
+    assert (config.robot.base_speed_mps, config.mapping.tau_m, config.sequencer.nominal_speed_mps) == (0.7, 0.3, 0.4)
+    explicit = _config(build_parser().parse_args(["run", "--headless", "--sequence", NAV, "--params", str(path),
+                                                  "--constraint", "cbf"]))
+    assert explicit.constraint == "cbf"  # the command line wins over the file
+
+
+def test_bad_params_file_names_field_and_line(tmp_path):
+    path = tmp_path / "p.yaml"
+    path.write_text("htmpc:\n  gamma: 0.5\n  delta_safe: 0.3\n")
+    proc = run_cli("run", "--headless", "--sequence", NAV, "--params", str(path), timeout=120)
+    assert proc.returncode == 2
+    assert "line 3" in proc.stderr and "htmpc.delta_safe" in proc.stderr
+
+
+def test_targets_the_robot_cannot_take_are_refused_before_the_run(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(f"scene: {ROOT / 'core/sim/scenes/default.yaml'}\nsubtasks:\n- kind: base\n"
+                   "  target: {x: 2.2, y: 1.3}\n- kind: ee\n  target: {position: [2.0, 0.0, 5.0]}\n")
+    proc = run_cli("run", "--headless", "--sequence", str(bad), timeout=180)
+    assert proc.returncode == 2
+    assert "line 4: subtasks.0.target" in proc.stderr and "inside box_a" in proc.stderr
+    assert "line 6: subtasks.1.target" in proc.stderr and "nearest acceptable: (2.00, 0.00," in proc.stderr
+
+
+@pytest.mark.slow
+def test_headless_run_with_params_reports_them(tmp_path):
+    params = tmp_path / "p.yaml"
+    params.write_text("sequencer: {nominal_speed_mps: 0.8}\nhtmpc: {gamma: 2.0}\n")
+    out = tmp_path / "report"
+    proc = run_cli("run", "--headless", "--map", "ground_truth", "--sequence", NAV, "--params", str(params),
+                   "--max-duration", "60", "--out", str(out))
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    report = json.loads((out / "report.json").read_text())
+    assert report["meta"]["tunables"]["htmpc"]["gamma"] == 2.0
+    assert report["meta"]["tunables"]["sequencer"]["nominal_speed_mps"] == 0.8
+    assert report["summary"]["max_base_speed_mps"] > 0.8  # 0.65 m/s with the default 0.6 m/s reference
+    assert "problems" in report and "problems:" in proc.stdout

@@ -1,0 +1,87 @@
+"""The problems log: what it counts from controller steps, and its hook points in a real closed loop."""
+
+import json
+import time
+
+import numpy as np
+import pytest
+
+from app.problems import ProblemKind, ProblemLog, summary_line
+from app.report import write_report
+from app.runtime import Runtime, RuntimeConfig
+from app.snapshot import RunState
+from core.sim.scene import Scene
+from core.types import Plan, PlanStatus
+from tasks import BasePose, BaseSubtask, TaskSequence
+
+GOAL = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=2.0, y=0.0), timeout_s=30.0)])
+
+
+def plan(status: PlanStatus, message: str = "") -> Plan:
+    z = np.zeros((11, 9))
+    return Plan(0.0, 0.3, z, z, z[:10], z[:, :3], z[:, :3], (0.0,), (1.0,), status, message)
+
+
+def test_plan_classification():
+    log = ProblemLog(slow_solve_ms=100.0)
+    log.observe_plan(plan(PlanStatus.OK), 0.1, 5.0)
+    log.observe_plan(plan(PlanStatus.STOPPING, "no task: holding"), 0.2)
+    assert log.counts() == ()
+    log.observe_plan(plan(PlanStatus.OK, "level 2 QP failed (1)"), 1.0, 5.0)  # level 1's plan kept
+    log.observe_plan(plan(PlanStatus.FALLBACK, "level 1 QP failed (1); braking along the previous plan"), 2.0)
+    log.observe_plan(plan(PlanStatus.FALLBACK, "solve took 312 ms > 250 ms; braking"), 3.0, 312.0)
+    log.observe_plan(plan(PlanStatus.OK), 4.0, 180.0)
+    by_kind = {c.kind: c for c in log.counts()}
+    assert by_kind[ProblemKind.QP_FAILURE].count == 2 and by_kind[ProblemKind.QP_FAILURE].first_t == 1.0
+    assert by_kind[ProblemKind.FALLBACK].count == 2 and by_kind[ProblemKind.FALLBACK].last_t == 3.0
+    assert by_kind[ProblemKind.SLOW_SOLVE].count == 2
+    assert by_kind[ProblemKind.SLOW_SOLVE].last_message == "solve took 180 ms (> 100 ms)"
+    assert log.total == 6
+    assert summary_line(log.counts()).startswith("2 QP failures (last at 2.0 s), 2 fallback plans")
+    assert json.loads(json.dumps(log.to_json()))["qp_failure"]["count"] == 2
+
+
+def test_controller_problems_reach_the_snapshot_and_the_report(tmp_path):
+    """Every controller step passes through the log: a failing solver shows in the snapshot and report.json."""
+    rt = Runtime(RuntimeConfig(map_kind="ground_truth"), scene=Scene(), sequence=GOAL)
+    solve = rt.controller.solve
+    calls = {"n": 0}
+
+    def flaky(state, refs, edf):
+        calls["n"] += 1
+        out = solve(state, refs, edf)
+        if calls["n"] % 5 == 0:  # every fifth step: a level-1 QP failure and its braking plan
+            return rt.controller._fallback(state, 2, "level 1 QP failed (3)")
+        return out
+
+    rt.controller.solve = flaky
+    rt.run_lockstep(3.0, until_done=False)
+    counts = {c.kind: c for c in rt.snapshot().problems}
+    assert counts[ProblemKind.QP_FAILURE].count == calls["n"] // 5 > 0
+    assert counts[ProblemKind.FALLBACK].count == calls["n"] // 5
+    summary = write_report(tmp_path, rt.log, (), {"title": "t"}, rt.problems)
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert report["problems"]["qp_failure"]["count"] == calls["n"] // 5
+    assert summary["problems_qp_failure"] == calls["n"] // 5 and summary["problems_fault"] == 0
+    rt.reset()
+    assert rt.snapshot().problems == ()
+
+
+@pytest.mark.slow
+def test_a_crashed_live_loop_is_a_fault():
+    rt = Runtime(RuntimeConfig(map_kind="object"), scene=Scene(), sequence=GOAL)
+
+    def broken(observation):
+        raise RuntimeError("map exploded")
+
+    rt.map.integrate = broken
+    rt.start_live()
+    try:
+        rt.start()
+        deadline = time.time() + 20
+        while time.time() < deadline and rt.problems.count(ProblemKind.FAULT) == 0:
+            time.sleep(0.05)
+        (fault,) = [c for c in rt.snapshot().problems if c.kind == ProblemKind.FAULT]
+        assert "map exploded" in fault.last_message and rt.run_state != RunState.RUNNING
+    finally:
+        rt.shutdown()
