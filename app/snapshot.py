@@ -24,6 +24,9 @@ class RunState(StrEnum):
     FINISHED = "finished"
     FAILED = "failed"
     ESTOP = "emergency_stop"
+    FAULT = "fault"
+    """A loop raised or the robot state was not finite: the robot brakes along its last plan within the
+    acceleration limits; Start is refused until Reset."""
 
 
 @dataclass(frozen=True)
@@ -67,3 +70,5 @@ class Snapshot:
     speed: float = 1.0
     messages: tuple[str, ...] = ()
     """Errors and warnings raised since the previous snapshot (shown as notifications)."""
+    fault: str | None = None
+    """Why the run is in `RunState.FAULT` (kept until Reset), None without a fault."""

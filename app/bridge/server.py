@@ -24,7 +24,6 @@ from app.bridge.bridge_robot import BridgeRobot
 from app.bridge.robot_link import STALE_AFTER_S, RobotLink
 from app.bridge.watchdog import StaleStateWatchdog
 from app.bridge.web_app import create_app
-from app.snapshot import RunState
 
 if TYPE_CHECKING:
     from app.runtime import Runtime
@@ -99,7 +98,7 @@ class BridgeServer:
         """Give the operator API, the stale-state pause and the motion gate this runtime."""
         self.app.state.attachment = RuntimeAttachment(runtime)
         if runtime.backend is self.robot:
-            self.robot.motion_allowed = lambda: runtime.run_state == RunState.RUNNING
+            self.robot.motion_allowed = runtime.motion_allowed  # running, or braking after a fault
 
     @property
     def attachment(self) -> RuntimeAttachment | None:

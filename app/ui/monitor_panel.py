@@ -92,7 +92,7 @@ class MonitorPanel:
     @staticmethod
     def _status(snap: Snapshot) -> str:
         icon = {RunState.RUNNING: "▶", RunState.PAUSED: "⏸", RunState.ESTOP: "⛔", RunState.FINISHED: "✔",
-                RunState.FAILED: "✖"}.get(snap.run_state, "■")
+                RunState.FAILED: "✖", RunState.FAULT: "⚠"}.get(snap.run_state, "■")
         return (f"{icon} **{snap.run_state.value}** · t = {snap.state.t:.1f} s · {snap.status}  \n"
                 f"map: {snap.map_kind} · constraint: {snap.constraint} · clearance {snap.min_distance_m:.2f} m · "
                 f"collisions {snap.collisions}")
