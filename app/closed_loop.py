@@ -21,7 +21,8 @@ Locks, always taken in this order (never an earlier one while holding a later on
 3. `lock`          the run: `run_state`, `fault_reason`, `plan` and the delayed plans, `view`, `state`,
                    `timings_ms`, `latest_frames`, `last_edf`, `min_distance_m`, the step budget. Held only
                    for reads and writes: never around a solve, a map call or a backend call.
-4. `map_lock`      the map (`integrate`, `local_edf`, `occupied_points`, `snapshot`, replacing it).
+4. `map_lock`      the map (`integrate`, `local_edf`, `occupied_points`, `snapshot`, replacing it); in
+                   live mode the object and voxel maps run in their own process (`isolate_map`).
 5. `frames_ready`  the queue of depth frames waiting for the map (a Condition).
 
 Locks inside the parts (`SimWorld.lock`, the bridge's `RobotLink`) and the runtime's publishing lock are
@@ -42,6 +43,7 @@ from typing import TYPE_CHECKING, TypeVar
 import numpy as np
 
 from app.components import make_controller, make_map
+from app.map_process import MapProcess
 from app.run_log import RunLog
 from app.snapshot import RunState
 from core.htmpc.safety import brake_along, braking_plan
@@ -58,6 +60,10 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
+PROCESS_MAP_KINDS = ("object", "voxel")
+"""Maps that live mode runs in their own process (the ground-truth map reads the simulation in this one)."""
+MAP_LOCK_PATIENCE_S = 1.0
+"""Stopping: how long to wait for a map call in flight before cutting its process short."""
 MOVING_STATES = (RunState.RUNNING, RunState.FAULT)
 """Run states in which the active plan is commanded (FAULT: the braking plan)."""
 
@@ -123,6 +129,10 @@ class ClosedLoop:
         self.min_distance_m = math.nan
         self.latest_frames: dict[str, DepthFrame] = {}
         self.step_budget_s = 0.0
+        self.max_plan_age_s = math.inf
+        """Running on a plan from a control step older than this (robot s) is a fault (live mode sets it;
+        lockstep is never late)."""
+        self._last_control_t = -math.inf
         self.log = RunLog()
 
     def _initial_state(self) -> RobotState:
@@ -154,6 +164,10 @@ class ClosedLoop:
                     return
                 if self.run_state == RunState.PAUSED:
                     self.sequencer.resume(self.state.t)
+                    if self.world is None:  # a real robot held still while paused: its old plan is void
+                        self.plan = None
+                        self._pending_plans.clear()
+                    self._last_control_t = self.state.t  # the pause is no lateness of the control loop
                     self.run_state = RunState.RUNNING
                     return
             sequencer = self._sequencer(sequence)
@@ -203,12 +217,39 @@ class ClosedLoop:
             if map_kind:
                 new_map = make_map(self.config.map_kind, self.robot, self.world, self.config.mapping)
                 with self.map_lock:
+                    isolated = isinstance(self.map, MapProcess)
+                    if isolated:
+                        self.map.close()
                     self.map = new_map
+                if isolated:
+                    self.isolate_map()
             if constraint:
                 controller = make_controller(self.robot, replace(self.config.htmpc, constraint=constraint))
                 controller.enforce_timeout = self.controller.enforce_timeout
                 with self.lock:
                     self.controller = controller
+
+    def isolate_map(self) -> None:
+        """Live: run an object or voxel map in its own process (app/map_process.py), so that its CPU work
+        never holds the GIL the I/O and control loops need."""
+        with self.map_lock:
+            if self.config.map_kind in PROCESS_MAP_KINDS and not isinstance(self.map, MapProcess):
+                self.map = MapProcess(self.map)
+
+    def restore_map(self, keep: bool = True) -> None:
+        """End an isolated map's process, bringing the map back into this one (with `keep`; else, or if it
+        cannot be handed back, a fresh map). A call stuck on the process is cut short."""
+        isolated = self.map
+        if not isinstance(isolated, MapProcess):
+            return
+        if not self.map_lock.acquire(timeout=MAP_LOCK_PATIENCE_S):
+            isolated.abort()  # the thread waiting on it fails at once and lets go of the lock
+            self.map_lock.acquire()
+        try:
+            world_map = isolated.close(keep)
+            self.map = world_map or make_map(self.config.map_kind, self.robot, self.world, self.config.mapping)
+        finally:
+            self.map_lock.release()
 
     def take_physics_step(self, dt: float) -> bool:
         """Live physics: whether to advance by dt now (not while paused, unless `step` granted time)."""
@@ -368,6 +409,7 @@ class ClosedLoop:
                     self.timings_ms["solve"] = solve_ms
                     self._pending_plans.append((state.t + self.config.actuation_delay_s, plan))
                     self.last_control_wall = time.time()
+                    self._last_control_t = state.t
         if plan is None and sequencer.failed:
             self.notify(sequencer.status_line())
         with self.lock:
@@ -397,6 +439,12 @@ class ClosedLoop:
         with self.lock:
             self._activate_due(t)
             plan = self.plan if self.moving else None
+            age = t - self._last_control_t
+            late = self.run_state == RunState.RUNNING and plan is not None and age > self.max_plan_age_s
+        if late:
+            self.fault(f"control is late: no control step for {age:.1f} s")
+            with self.lock:
+                plan = self.plan
         return plan.velocity_at(t) if plan is not None else np.zeros(NQ)
 
     def measure(self, qdot: np.ndarray) -> None:

@@ -2,7 +2,8 @@
 
 - physics (simulation only): `backend.step` of 10 ms of sim time, paced by `speed`, frozen while paused;
 - io: observe + command at the command rate (100 Hz), deadline-paced so the rate holds on average;
-- mapping: integrate depth frames as they arrive (only the newest of each camera when behind);
+- mapping: integrate depth frames as they arrive (only the newest of each camera when behind), the object
+  and voxel maps in a process of their own (`app/map_process.py`: mapping held the GIL these loops need);
 - control: one control step (and a run-log row) per control period of robot time, woken by the io loop;
 - publish: a snapshot to the subscribers at `publish_hz`;
 - watchdog: every loop must keep beating; a dead or stalled loop is a fault.
@@ -30,9 +31,14 @@ PHYSICS_STEP_S = 0.01
 """Sim time advanced per physics iteration (its wall period is this / speed)."""
 MAP_WAIT_S = 0.2
 WATCHDOG_PERIOD_S = 0.2
-STALL_AFTER_S = {"physics": 2.0, "io": 2.0, "mapping": 10.0, "control": 5.0, "publish": 10.0}
+STALL_AFTER_S = {"physics": 5.0, "io": 5.0, "mapping": 15.0, "control": 5.0, "publish": 15.0}
 """A loop that has not finished an iteration for this long (wall s) is stalled: a fault. Generous, so that
-a loaded machine does not fault spuriously; the backends' own watchdogs stop a robot whose commands stop."""
+a loaded machine does not fault spuriously (the first physics step, which creates the cameras' GL
+contexts, took 1.5 s at load 8 on 2 cores); a late control loop is caught sooner by the plan's age
+(`MAX_PLAN_AGE_S`), and the backends' own watchdogs stop a robot whose commands stop."""
+MAX_PLAN_AGE_S = 2.0
+"""Live: running on the plan of a control step older than this (robot s) means the control loop is not
+keeping up: a fault, so the robot brakes along the plan instead of running to the end of its 3 s horizon."""
 
 
 @dataclass
@@ -44,6 +50,8 @@ class LoopStats:
     errors: int = 0
     beat: float = field(default_factory=time.monotonic)
     """Monotonic time the latest iteration ended."""
+    longest_s: float = 0.0
+    """Longest iteration (wall s)."""
 
 
 class SupervisedLoop:
@@ -81,9 +89,11 @@ class SupervisedLoop:
         next_tick = time.perf_counter()
         try:
             while not self.stopping.is_set():
+                start = time.monotonic()
                 self._iterate()
                 self.stats.iterations += 1
                 self.stats.beat = time.monotonic()
+                self.stats.longest_s = max(self.stats.longest_s, self.stats.beat - start)
                 if self.period_s is not None:
                     next_tick = self._pace(next_tick, self.period_s())
         except BaseException as err:  # noqa: BLE001  (SystemExit and the like end the thread: say so)
@@ -96,6 +106,8 @@ class SupervisedLoop:
         try:
             self.tick()
         except Exception as err:
+            if self.stopping.is_set():  # cut short on purpose (a map call aborted at shutdown)
+                return
             self.stats.errors += 1
             if self.stats.errors == 1 or self.stats.errors % 1000 == 0:
                 log.debug("%s loop: exception #%d", self.name, self.stats.errors, exc_info=True)
@@ -139,15 +151,20 @@ class LiveLoops:
 
     def start(self) -> None:
         self.loop.controller.enforce_timeout = True
+        self.loop.max_plan_age_s = MAX_PLAN_AGE_S + self.loop.config.actuation_delay_s
+        if self.loop.config.map_process:
+            self.loop.isolate_map()
         for loop in [*self.loops, self.watchdog]:
             loop.start()
 
-    def stop(self, timeout_s: float = 3.0) -> list[str]:
-        """Stop every thread; the names of those that did not end within `timeout_s` each."""
+    def stop(self, timeout_s: float = 3.0, keep_map: bool = True) -> list[str]:
+        """Stop every thread and bring the map back from its process (`keep_map`; else it is dropped); the
+        names of the threads that did not end within `timeout_s` each."""
         for loop in [self.watchdog, *self.loops]:
             loop.stop()
         self._control_due.set()
         self.loop.wake_mapping()
+        self.loop.restore_map(keep_map)
         return [loop.name for loop in [self.watchdog, *self.loops] if not loop.join(timeout_s)]
 
     def stats(self) -> dict[str, LoopStats]:

@@ -68,6 +68,8 @@ class RuntimeConfig:
     perception_delay_s: float = 0.0
     actuation_delay_s: float = 0.0
     publish_hz: float = 20.0
+    map_process: bool = True
+    """Live mode: run the object and voxel maps in a process of their own (keeps the I/O loops on time)."""
     seed: int = 0
     htmpc: HTMPCParams = field(default_factory=HTMPCParams)
     mapping: MappingParams = field(default_factory=MappingParams)
@@ -269,7 +271,7 @@ class Runtime:
         a new closed loop, with new live threads if they were running."""
         live = self._live is not None
         if live:
-            self._stop_live()
+            self._stop_live(keep_map=False)
         if scene is not None:
             self._scene = scene
         if self.world is not None:
@@ -378,11 +380,11 @@ class Runtime:
         self._live = LiveLoops(self._loop, self.publish, self.config.publish_hz)
         self._live.start()
 
-    def _stop_live(self) -> None:
+    def _stop_live(self, keep_map: bool = True) -> None:
         live, self._live = self._live, None
         if live is None:
             return
-        stuck = live.stop()
+        stuck = live.stop(keep_map=keep_map)
         if stuck:
             self.notify(f"loops that did not stop in time (left behind): {', '.join(stuck)}")
 

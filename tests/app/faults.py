@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -32,7 +33,9 @@ class FaultyRobot(SimRobot):
 
     def __init__(self, world: SimWorld) -> None:
         super().__init__(world)
-        self.commands: list[tuple[float, np.ndarray]] = []
+        self.commands: list[tuple[float, np.ndarray, bool]] = []
+        """(robot time, qdot, whether the run was faulted when it was sent), in order."""
+        self.faulted: Callable[[], bool] = lambda: False
         self._lock = threading.Lock()
         self._fault: tuple[str, object, int] | None = None
 
@@ -52,7 +55,7 @@ class FaultyRobot(SimRobot):
 
     def command(self, qdot: np.ndarray, t: float) -> None:
         with self._lock:
-            self.commands.append((float(t), np.array(qdot, dtype=float)))
+            self.commands.append((float(t), np.array(qdot, dtype=float), self.faulted()))
         super().command(qdot, t)
 
     def step(self, dt: float) -> None:
@@ -74,9 +77,11 @@ class FaultyRobot(SimRobot):
                                              v=bad if fault == "inf" else obs.state.v))
         return obs
 
-    def commands_since(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+    def braking_commands(self) -> tuple[np.ndarray, np.ndarray]:
+        """Times and commands from the last one before the fault on."""
         with self._lock:
-            rows = [(ti, q) for ti, q in self.commands if ti >= t]
+            first = next(i for i, c in enumerate(self.commands) if c[2])
+            rows = self.commands[max(0, first - 1):]
         return np.array([r[0] for r in rows]), np.array([r[1] for r in rows]).reshape(-1, 9)
 
 
@@ -111,14 +116,16 @@ def faulty_runtime(map_kind: str = "ground_truth", htmpc: HTMPCParams | None = N
     world = SimWorld(robot, scene=Scene())
     backend = FaultyRobot(world)
     config = RuntimeConfig(map_kind=map_kind, htmpc=htmpc or HTMPCParams())
-    return Runtime(config, sequence=DRIVE, backend=backend), backend
+    rt = Runtime(config, sequence=DRIVE, backend=backend)
+    backend.faulted = lambda: rt.fault is not None
+    return rt, backend
 
 
-def assert_brakes_within_limits(rt: Runtime, backend: FaultyRobot, since_t: float) -> None:
-    """Every command from robot time `since_t` on is finite and within the velocity limits, changes by at
-    most a_max per second of robot time, and the last one is zero."""
+def assert_brakes_within_limits(rt: Runtime, backend: FaultyRobot) -> None:
+    """Every command from the last one before the fault on is finite and within the velocity limits, changes
+    by at most a_max per second of robot time, and the last one is zero."""
     lim = rt.robot.limits
-    t, qdot = backend.commands_since(since_t)
+    t, qdot = backend.braking_commands()
     assert len(t) >= 2, "no commands after the fault"
     assert np.all(np.isfinite(qdot))
     assert np.all(np.abs(qdot) <= lim.v_max + 1e-9)
