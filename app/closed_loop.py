@@ -21,8 +21,9 @@ Locks, always taken in this order (never an earlier one while holding a later on
 3. `lock`          the run: `run_state`, `fault_reason`, `plan` and the delayed plans, `view`, `state`,
                    `timings_ms`, `latest_frames`, `last_edf`, `min_distance_m`, the step budget. Held only
                    for reads and writes: never around a solve, a map call or a backend call.
-4. `map_lock`      the map (`integrate`, `local_edf`, `occupied_points`, `snapshot`, replacing it); in
-                   live mode the object and voxel maps run in their own process (`isolate_map`).
+4. `map_lock`      the map (`integrate`, `local_edf`, `occupied_points`, `snapshot`, replacing it), taken
+                   through `using_map`; in live mode the object and voxel maps run in their own process
+                   (`isolate_map`), which serialises its own calls, and the lock only guards the swap.
 5. `frames_ready`  the queue of depth frames waiting for the map (a Condition).
 
 Locks inside the parts (`SimWorld.lock`, the bridge's `RobotLink`) and the runtime's publishing lock are
@@ -31,12 +32,13 @@ leaves: taken last and never held while calling back into the loop.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, TypeVar
 
@@ -62,7 +64,7 @@ log = logging.getLogger(__name__)
 T = TypeVar("T")
 PROCESS_MAP_KINDS = ("object", "voxel")
 """Maps that live mode runs in their own process (the ground-truth map reads the simulation in this one)."""
-MAP_LOCK_PATIENCE_S = 1.0
+MAP_PATIENCE_S = 1.0
 """Stopping: how long to wait for a map call in flight before cutting its process short."""
 MOVING_STATES = (RunState.RUNNING, RunState.FAULT)
 """Run states in which the active plan is commanded (FAULT: the braking plan)."""
@@ -217,11 +219,9 @@ class ClosedLoop:
             if map_kind:
                 new_map = make_map(self.config.map_kind, self.robot, self.world, self.config.mapping)
                 with self.map_lock:
-                    isolated = isinstance(self.map, MapProcess)
-                    if isolated:
-                        self.map.close()
-                    self.map = new_map
-                if isolated:
+                    old, self.map = self.map, new_map
+                if isinstance(old, MapProcess):
+                    old.close(keep=False)
                     self.isolate_map()
             if constraint:
                 controller = make_controller(self.robot, replace(self.config.htmpc, constraint=constraint))
@@ -239,17 +239,24 @@ class ClosedLoop:
     def restore_map(self, keep: bool = True) -> None:
         """End an isolated map's process, bringing the map back into this one (with `keep`; else, or if it
         cannot be handed back, a fresh map). A call stuck on the process is cut short."""
-        isolated = self.map
-        if not isinstance(isolated, MapProcess):
-            return
-        if not self.map_lock.acquire(timeout=MAP_LOCK_PATIENCE_S):
-            isolated.abort()  # the thread waiting on it fails at once and lets go of the lock
-            self.map_lock.acquire()
-        try:
-            world_map = isolated.close(keep)
+        with self.map_lock:
+            isolated = self.map
+            if not isinstance(isolated, MapProcess):
+                return
+            world_map = isolated.close(keep, patience_s=MAP_PATIENCE_S)
             self.map = world_map or make_map(self.config.map_kind, self.robot, self.world, self.config.mapping)
-        finally:
-            self.map_lock.release()
+
+    @contextlib.contextmanager
+    def using_map(self) -> Iterator[WorldMap]:
+        """The map for a call, under the map lock; an isolated map serialises its own calls and answers
+        queries from what its latest integration brought back, so then the lock is not held (control
+        never waits for an integration in progress)."""
+        with self.map_lock:
+            world_map = self.map
+            if not getattr(world_map, "serialises_calls", False):
+                yield world_map
+                return
+        yield world_map
 
     def take_physics_step(self, dt: float) -> bool:
         """Live physics: whether to advance by dt now (not while paused, unless `step` granted time)."""
@@ -372,8 +379,8 @@ class ClosedLoop:
                 self.latest_frames[frame.camera] = frame
             state = self.state
         t0 = time.perf_counter()
-        with self.map_lock:
-            self.map.integrate(Observation(state=state, frames=tuple(due), odometry=None))
+        with self.using_map() as world_map:
+            world_map.integrate(Observation(state=state, frames=tuple(due), odometry=None))
         with self.lock:
             self.timings_ms["mapping"] = (time.perf_counter() - t0) * 1e3
 
@@ -385,10 +392,10 @@ class ClosedLoop:
                 if self.run_state != RunState.RUNNING:
                     return
                 sequencer, controller = self.sequencer, self.controller
-            with self.map_lock:
-                occupied = self.map.occupied_points()
+            with self.using_map() as world_map:
+                occupied = world_map.occupied_points()
                 t_edf = time.perf_counter()
-                edf = self.map.local_edf(state.q[:2])
+                edf = world_map.local_edf(state.q[:2])
                 edf_ms = (time.perf_counter() - t_edf) * 1e3
             refs = sequencer.update(state, occupied, state.t)
             plan, solve_ms = None, math.nan

@@ -58,9 +58,9 @@ def build_snapshot(loop: ClosedLoop, seq: int, messages: tuple[str, ...], sequen
 
 def _map_view(loop: ClosedLoop) -> tuple[ObjectMapSnapshot | None, np.ndarray | None]:
     try:
-        with loop.map_lock:
-            object_map = loop.map.snapshot()
-            points = loop.map.occupied_points()
+        with loop.using_map() as world_map:
+            object_map = world_map.snapshot()
+            points = world_map.occupied_points()
     except Exception as err:  # a broken map is a fault, and the snapshot goes out without it
         loop.fault(f"map snapshot: {type(err).__name__}: {err}")
         return None, None
