@@ -45,7 +45,7 @@ from typing import TYPE_CHECKING, TypeVar
 import numpy as np
 
 from app.components import make_controller, make_map
-from app.map_process import MapProcess
+from app.map_process import MapProcess, MapProcessError
 from app.run_log import RunLog
 from app.snapshot import RunState
 from core.htmpc.safety import brake_along, braking_plan
@@ -221,20 +221,36 @@ class ClosedLoop:
                 with self.map_lock:
                     old, self.map = self.map, new_map
                 if isinstance(old, MapProcess):
-                    old.close(keep=False)
-                    self.isolate_map()
+                    self.isolate_map(old)  # the new map runs in the same worker
             if constraint:
                 controller = make_controller(self.robot, replace(self.config.htmpc, constraint=constraint))
                 controller.enforce_timeout = self.controller.enforce_timeout
                 with self.lock:
                     self.controller = controller
 
-    def isolate_map(self) -> None:
+    def isolate_map(self, process: MapProcess | None = None) -> None:
         """Live: run an object or voxel map in its own process (app/map_process.py), so that its CPU work
-        never holds the GIL the I/O and control loops need."""
+        never holds the GIL the I/O and control loops need; in `process` (still running) if given."""
         with self.map_lock:
-            if self.config.map_kind in PROCESS_MAP_KINDS and not isinstance(self.map, MapProcess):
-                self.map = MapProcess(self.map)
+            if self.config.map_kind not in PROCESS_MAP_KINDS or isinstance(self.map, MapProcess):
+                if process is not None:
+                    process.close(keep=False)
+                return
+            if process is not None:
+                try:
+                    process.adopt(self.map)
+                    self.map = process
+                    return
+                except MapProcessError as err:
+                    log.warning("a new mapping process instead: %s", err)
+                    process.close(keep=False)
+            self.map = MapProcess(self.map)
+
+    def release_map(self) -> MapProcess | None:
+        """Reset: the isolated map's process, to run the next loop's map (None if there is none)."""
+        with self.map_lock:
+            process = self.map
+            return process if isinstance(process, MapProcess) and process.alive else None
 
     def restore_map(self, keep: bool = True) -> None:
         """End an isolated map's process, bringing the map back into this one (with `keep`; else, or if it

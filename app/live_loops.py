@@ -23,6 +23,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from app.closed_loop import ClosedLoop
+from app.map_process import MapProcess
 from core.sim.sim_robot import SimRobot
 
 log = logging.getLogger(__name__)
@@ -149,23 +150,29 @@ class LiveLoops:
                                                 on_exit=loop.backend.close))  # GL contexts belong to that thread
         self.watchdog = SupervisedLoop("watchdog", self._watch, fault, lambda: WATCHDOG_PERIOD_S)
 
-    def start(self) -> None:
+    def start(self, map_process: MapProcess | None = None) -> None:
+        """Start the threads; the map in its own process (`map_process` if one is handed over)."""
         self.loop.controller.enforce_timeout = True
         self.loop.max_plan_age_s = MAX_PLAN_AGE_S + self.loop.config.actuation_delay_s
         if self.loop.config.map_process:
-            self.loop.isolate_map()
+            self.loop.isolate_map(map_process)
+        elif map_process is not None:
+            map_process.close(keep=False)
         for loop in [*self.loops, self.watchdog]:
             loop.start()
 
-    def stop(self, timeout_s: float = 3.0, keep_map: bool = True) -> list[str]:
-        """Stop every thread and bring the map back from its process (`keep_map`; else it is dropped); the
-        names of the threads that did not end within `timeout_s` each."""
+    def stop(self, timeout_s: float = 3.0) -> list[str]:
+        """Stop every thread; the names of those that did not end within `timeout_s` each (a map process a
+        stuck thread waits on is ended, so that thread can finish)."""
         for loop in [self.watchdog, *self.loops]:
             loop.stop()
         self._control_due.set()
         self.loop.wake_mapping()
-        self.loop.restore_map(keep_map)
-        return [loop.name for loop in [self.watchdog, *self.loops] if not loop.join(timeout_s)]
+        stuck = [loop.name for loop in [self.watchdog, *self.loops] if not loop.join(timeout_s)]
+        if stuck and isinstance(self.loop.map, MapProcess):
+            self.loop.map.abort()
+            stuck = [loop.name for loop in [self.watchdog, *self.loops] if not loop.join(timeout_s)]
+        return stuck
 
     def stats(self) -> dict[str, LoopStats]:
         return {loop.name: loop.stats for loop in self.loops}

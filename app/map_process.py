@@ -199,6 +199,21 @@ class MapProcess:
                 return here.local_edf(centre)
             return self._call("local_edf", centre)
 
+    @property
+    def alive(self) -> bool:
+        return not self._closed and self._process.is_alive()
+
+    def adopt(self, world_map: WorldMap) -> None:
+        """Run `world_map` instead (a Reset: a new map, the same worker, no second start-up)."""
+        with self._pipe:
+            if not self.alive:
+                raise MapProcessError("the mapping process is closed or gone")
+            if self._local is not None:
+                self._local = world_map
+                return
+            self._call("adopt", world_map)
+            self._latest = _Latest(world_map.snapshot(), world_map.occupied_points(), dict(world_map.timings_ms))
+
     def abort(self) -> None:
         """End the worker now, from any thread (a call waiting on it fails at once); its map is lost."""
         if self._process.is_alive():

@@ -29,6 +29,7 @@ import numpy as np
 import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported)
 from app.closed_loop import MOVING_STATES, ClosedLoop, FaultError
 from app.live_loops import LiveLoops
+from app.map_process import MapProcess
 from app.run_log import RunLog
 from app.snapshot import RunState, Snapshot
 from app.snapshot_builder import build_snapshot, status_line
@@ -270,8 +271,7 @@ class Runtime:
         """Reload the scene (robot back at its start), clear the map, the plan, the progress and a fault;
         a new closed loop, with new live threads if they were running."""
         live = self._live is not None
-        if live:
-            self._stop_live(keep_map=False)
+        self._stop_live()
         if scene is not None:
             self._scene = scene
         if self.world is not None:
@@ -279,10 +279,13 @@ class Runtime:
             self.world.collisions.clear()
         self.backend.command(np.zeros(NQ), self.time)
         old = self._loop
+        map_process = old.release_map()
         self._loop = ClosedLoop(self.robot, self.backend, self.world, old.config, self.sequence, self.notify)
         old.log.close()
         if live:
-            self.start_live()
+            self.start_live(map_process)
+        elif map_process is not None:
+            map_process.close(keep=False)
 
     def set_speed(self, speed: float) -> None:
         """Live mode: sim seconds per wall second (simulation only: a real robot runs in real time)."""
@@ -373,22 +376,24 @@ class Runtime:
 
     # --- live ------------------------------------------------------------------------------------
 
-    def start_live(self) -> None:
-        """Start the supervised live threads (physics for the simulation, I/O, mapping, control, publishing)."""
+    def start_live(self, map_process: MapProcess | None = None) -> None:
+        """Start the supervised live threads (physics for the simulation, I/O, mapping, control, publishing);
+        the object or voxel map in its own process (`map_process`, when one is handed on by `reset`)."""
         if self._live is not None:
             return
         self._live = LiveLoops(self._loop, self.publish, self.config.publish_hz)
-        self._live.start()
+        self._live.start(map_process)
 
-    def _stop_live(self, keep_map: bool = True) -> None:
+    def _stop_live(self) -> None:
         live, self._live = self._live, None
         if live is None:
             return
-        stuck = live.stop(keep_map=keep_map)
+        stuck = live.stop()
         if stuck:
             self.notify(f"loops that did not stop in time (left behind): {', '.join(stuck)}")
 
     def shutdown(self) -> None:
-        """Stop the live threads and the robot."""
+        """Stop the live threads and the robot; an isolated map comes back into this process."""
         self._stop_live()
+        self._loop.restore_map()
         self.backend.command(np.zeros(NQ), self.time)

@@ -64,3 +64,22 @@ def test_a_failing_or_dead_worker_raises_map_process_errors(observations):
     with pytest.raises(MapProcessError, match="gone"):
         there.integrate(obs[1])
     assert there.close() is None
+
+
+def test_a_reset_hands_the_running_worker_a_new_map(observations):
+    robot, obs = observations
+    there = MapProcess(ObjectMapper(robot, MappingParams()))
+    try:
+        assert wait_until(lambda: there.local_edf(np.zeros(2)) is not None and there.isolated, timeout_s=60)
+        there.integrate(obs[0])
+        assert there.snapshot().objects
+        pid = there.pid
+        there.adopt(ObjectMapper(robot, MappingParams()))
+        assert there.pid == pid and there.alive and not there.snapshot().objects
+        there.integrate(obs[1])
+        assert there.snapshot().objects
+    finally:
+        there.close(keep=False)
+    assert not there.alive
+    with pytest.raises(MapProcessError, match="closed"):
+        there.adopt(ObjectMapper(robot, MappingParams()))
