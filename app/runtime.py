@@ -30,6 +30,7 @@ import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported
 from app.closed_loop import MOVING_STATES, ClosedLoop, FaultError
 from app.live_loops import LiveLoops
 from app.map_process import MapProcess
+from app.native_memory import limit_arenas, release_free_memory
 from app.run_log import RunLog
 from app.snapshot import RunState, Snapshot
 from app.snapshot_builder import build_snapshot, status_line
@@ -280,8 +281,11 @@ class Runtime:
         self.backend.command(np.zeros(NQ), self.time)
         old = self._loop
         map_process = old.release_map()
-        self._loop = ClosedLoop(self.robot, self.backend, self.world, old.config, self.sequence, self.notify)
         old.log.close()
+        del old
+        release_free_memory()
+        self._loop = ClosedLoop(self.robot, self.backend, self.world, self._loop.config, self.sequence,
+                                self.notify)
         if live:
             self.start_live(map_process)
         elif map_process is not None:
@@ -381,6 +385,7 @@ class Runtime:
         the object or voxel map in its own process (`map_process`, when one is handed on by `reset`)."""
         if self._live is not None:
             return
+        limit_arenas()  # the live threads are rebuilt on every Reset (app/native_memory.py)
         self._live = LiveLoops(self._loop, self.publish, self.config.publish_hz)
         self._live.start(map_process)
 
