@@ -86,10 +86,12 @@ class FaultyRobot(SimRobot):
 
 
 class RaiseOnCall:
-    """A real component whose `method` raises `error` from its k-th call on; everything else passes through."""
+    """A real component whose `method` raises `error` from its k-th call on (or, with `error` None, only
+    that call takes `sleep_s` longer); everything else passes through."""
 
-    def __init__(self, inner: object, method: str, error: BaseException, k: int = 1) -> None:
-        self._inner, self._method, self._error, self._k = inner, method, error, k
+    def __init__(self, inner: object, method: str, error: BaseException | None, k: int = 1,
+                 sleep_s: float = 0.0) -> None:
+        self._inner, self._method, self._error, self._k, self._sleep_s = inner, method, error, k, sleep_s
         self.calls = 0
 
     def __getattr__(self, name: str):
@@ -99,8 +101,10 @@ class RaiseOnCall:
 
         def call(*args, **kwargs):
             self.calls += 1
-            if self.calls >= self._k:
+            if self.calls >= self._k and self._error is not None:
                 raise self._error
+            if self.calls == self._k:
+                time.sleep(self._sleep_s)
             return attr(*args, **kwargs)
         return call
 

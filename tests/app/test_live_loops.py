@@ -31,6 +31,8 @@ LOOP_FAULTS = {
                 "control loop: RuntimeError: solver broke"),
     "publish": (_break_part("map", "snapshot", KeyError("objects")), "map snapshot: KeyError"),
     "stalled physics": (lambda rt, backend: _hang_physics(rt, backend), "physics loop stalled"),
+    "late control": (lambda rt, backend: setattr(rt.closed_loop, "controller", RaiseOnCall(
+        rt.closed_loop.controller, "solve", None, sleep_s=3.0)), "control is late: no control step for 2"),
 }
 
 
