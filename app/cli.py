@@ -1,7 +1,8 @@
 """Command line of the studio.
 
     python -m app [serve] [options]     serve the studio (default)
-    python -m app run --headless ...    run a sequence in lockstep and write a report (JSON + plots)
+    python -m app run --headless ...    run a sequence in lockstep and write a report (JSON + plots);
+                                        exit 0 finished, 1 not finished, 2 bad input, 3 fault
     python -m app replay FILE           replay a recorded run in the studio
 """
 
@@ -17,6 +18,9 @@ from dataclasses import asdict as dt_asdict
 from pathlib import Path
 
 from app.runtime import DEFAULT_SCENE, DEFAULT_SEQUENCE, MAP_KINDS, ROOT
+
+EXIT_FAULT = 3
+"""`run --headless`: the run faulted (the robot braked to rest; the reason is the last line on stderr)."""
 
 
 def _common(parser: argparse.ArgumentParser) -> None:
@@ -181,13 +185,17 @@ def run_headless(args) -> int:
                                                                              "sequencer")},
             "outcome": runtime.run_state.value,
             "status": runtime.status_line(), "subtasks_done": sum(p.outcome.value == "done"
-                                                                   for p in runtime.sequencer.progress)}
+                                                                   for p in runtime.sequencer.progress),
+            "fault": runtime.fault}
     summary = write_report(out, runtime.log, runtime.world.obstacles(), meta, runtime.problems)
     print(f"{runtime.run_state.value}: {runtime.status_line()}")
     print(f"problems: {summary_line(runtime.problems.counts())}")
     for key, value in summary.items():
         print(f"  {key}: {value:.3f}" if isinstance(value, float) else f"  {key}: {value}")
     print(f"report written to {out}")
+    if runtime.fault is not None:
+        print(f"fault: {runtime.fault}", file=sys.stderr)
+        return EXIT_FAULT
     return 0 if runtime.run_state.value == "finished" else 1
 
 

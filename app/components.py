@@ -1,14 +1,20 @@
-"""Build the runtime's exchangeable parts: the map (object, voxel or ground truth) and the controller."""
+"""The runtime's exchangeable parts, typed: a `WorldMap` (object, voxel or ground truth) and the HTMPC."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+from core.mapping.world_map import WorldMap
 from core.params import HTMPCParams, MappingParams
 from core.robot.model import RobotModel
 from core.sim.world import SimWorld
 
+if TYPE_CHECKING:
+    from core.htmpc import HTMPC
 
-def make_map(kind: str, robot: RobotModel, world: SimWorld | None, params: MappingParams):
-    """A map with `integrate`, `snapshot`, `local_edf`, `occupied_points` and `timings_ms`."""
+
+def make_map(kind: str, robot: RobotModel, world: SimWorld | None, params: MappingParams) -> WorldMap:
+    """A map of `kind`: 'object' (POCD), 'voxel' (static-world baseline) or 'ground_truth' (simulation only)."""
     if kind == "ground_truth":
         if world is None:
             raise ValueError("the ground-truth map needs the embedded simulation")
@@ -26,7 +32,7 @@ def make_map(kind: str, robot: RobotModel, world: SimWorld | None, params: Mappi
     raise ValueError(f"unknown map kind {kind!r}: object, voxel or ground_truth")
 
 
-def make_controller(robot: RobotModel, params: HTMPCParams):
+def make_controller(robot: RobotModel, params: HTMPCParams) -> HTMPC:
     """The lexicographic HTMPC with `solve(state, refs, edf) -> Plan` and `reset()`."""
     from core.htmpc import HTMPC
 

@@ -1,9 +1,14 @@
-"""The closed loop of the paper: robot backend, map, sequencer and HTMPC, in two modes.
+"""`Runtime`: the studio's one entry to the closed loop of the paper (robot backend, map, sequencer, HTMPC),
+used by the UI, the bridge's operator API and the CLI. It runs in two modes:
 
 - **lockstep** (`run_lockstep`): simulated time, one thread, deterministic, as fast as the machine
   allows; optional modelled perception and actuation delays. For tests, reports and benchmarks.
-- **live** (`start`): wall-clock threads that never block one another: physics (simulation only),
+- **live** (`start_live`): supervised wall-clock threads (`app/live_loops.py`): physics (simulation only),
   I/O at 100 Hz (observe, command), mapping as frames arrive, control at 10 Hz, publishing at 20 Hz.
+
+Both run the stages of one `ClosedLoop` (`app/closed_loop.py`, which also writes down the lock order);
+snapshots are assembled by `app/snapshot_builder.py`. A fault anywhere brakes the robot within its limits
+and holds the run in `RunState.FAULT` until `reset`, which builds a new closed loop and new live threads.
 
 Rates (paper): physics 500 Hz, depth 10 Hz, HTMPC 10 Hz, velocity commands 100 Hz interpolated from
 the latest plan (`Plan.velocity_at`). The runtime is the only owner of these parts; the UI and the
@@ -13,9 +18,7 @@ bridge read `Snapshot`s and call the public methods below.
 from __future__ import annotations
 
 import logging
-import math
 import threading
-import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -24,19 +27,26 @@ from pathlib import Path
 import numpy as np
 
 import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported)
-from app.components import make_controller, make_map
-from app.problems import ProblemKind, ProblemLog
+from app.closed_loop import MOVING_STATES, ClosedLoop, FaultError
+from app.live_loops import LiveLoops
+from app.map_process import MapProcess
+from app.native_memory import limit_arenas, release_free_memory
+from app.problems import ProblemLog
 from app.run_log import RunLog
-from app.snapshot import EDFSlice, RunState, Snapshot
+from app.snapshot import RunState, Snapshot
+from app.snapshot_builder import build_snapshot, status_line
+from core.mapping.world_map import WorldMap
 from core.params import HTMPCParams, MappingParams, RobotParams, SequencerParams, SimParams
 from core.robot.model import RobotModel
 from core.sim.scene import Box, Scene, load_scene, random_scene
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
-from core.types import DepthFrame, LocalEDF, Plan, RobotBackend, RobotState
+from core.types import NQ, DepthFrame, LocalEDF, Plan, RobotBackend, RobotState
 from tasks.schema import TaskSequence
 from tasks.sequence_file import load_sequence
-from tasks.sequencer import Outcome, Sequencer
+from tasks.sequencer import Sequencer
+
+__all__ = ["DEFAULT_SCENE", "DEFAULT_SEQUENCE", "MAP_KINDS", "ROOT", "FaultError", "Runtime", "RuntimeConfig"]
 
 log = logging.getLogger(__name__)
 
@@ -44,7 +54,8 @@ ROOT = Path(__file__).parents[1]
 DEFAULT_SCENE = ROOT / "core" / "sim" / "scenes" / "default.yaml"
 DEFAULT_SEQUENCE = ROOT / "tasks" / "examples" / "two_pickups.yaml"
 MAP_KINDS = ("object", "voxel", "ground_truth")
-EDF_SLICE_Z_M = 0.3
+FAULT_BRAKE_LIMIT_S = 5.0
+"""Lockstep: sim time a faulted run may take to come to rest before the run ends anyway."""
 
 
 @dataclass(frozen=True)
@@ -60,6 +71,8 @@ class RuntimeConfig:
     perception_delay_s: float = 0.0
     actuation_delay_s: float = 0.0
     publish_hz: float = 20.0
+    map_process: bool = True
+    """Live mode: run the object and voxel maps in a process of their own (keeps the I/O loops on time)."""
     seed: int = 0
     htmpc: HTMPCParams = field(default_factory=HTMPCParams)
     mapping: MappingParams = field(default_factory=MappingParams)
@@ -77,100 +90,151 @@ class RuntimeConfig:
 
 
 class Runtime:
-    """Owns the robot backend, world (simulation), map, sequencer and controller."""
+    """Owns the robot backend, the world (simulation) and the current `ClosedLoop`; the public API.
+
+    Without `backend`, a MuJoCo simulation of `scene` is built; a `SimRobot` passed as `backend` brings its
+    own world; any other `RobotBackend` is a real robot (no scene edits, no lockstep)."""
 
     def __init__(self, config: RuntimeConfig | None = None, scene: Scene | None = None,
                  sequence: TaskSequence | None = None, backend: RobotBackend | None = None) -> None:
-        self.config = config or RuntimeConfig()
-        self.robot = RobotModel(self.config.robot)
-        self._lock = threading.RLock()
-        self._map_lock = threading.Lock()
-        self._scene = scene or (load_scene(self.config.scene) if self.config.scene else Scene())
+        config = config or RuntimeConfig()
+        self.robot = RobotModel(config.robot)
+        self._scene = scene or (load_scene(config.scene) if config.scene else Scene())
         if backend is None:
-            self.world: SimWorld | None = SimWorld(self.robot, self.config.sim, self._scene)
-            self.backend: RobotBackend = SimRobot(self.world, seed=self.config.seed)
+            self.world: SimWorld | None = SimWorld(self.robot, config.sim, self._scene)
+            self.backend: RobotBackend = SimRobot(self.world, seed=config.seed)
+        elif isinstance(backend, SimRobot):  # a simulation built by the caller (its own cameras, seed, scene)
+            self.world, self.backend, self.robot = backend.world, backend, backend.world.robot
+            self._scene = self.world.scene()
         else:
             self.world, self.backend = None, backend
-            if self.config.map_kind == "ground_truth":
+            if config.map_kind == "ground_truth":
                 raise ValueError("the ground-truth map needs the embedded simulation")
-        self.sequence = sequence or (load_sequence(self.config.sequence) if self.config.sequence else TaskSequence())
+        self.sequence = sequence or (load_sequence(config.sequence) if config.sequence else TaskSequence())
         self.sequence_version = 0
-        self.run_state = RunState.IDLE
-        self.log = RunLog()
-        self.problems = ProblemLog(1e3 / self.config.htmpc.control_rate_hz)
+        self._publish_lock = threading.Lock()
+        """Guards subscribers, queued messages and the snapshot counter (a leaf lock, see closed_loop)."""
         self._subscribers: list[Callable[[Snapshot], None]] = []
         self._messages: deque[str] = deque(maxlen=20)
-        self._threads: list[threading.Thread] = []
-        self._stop_threads = threading.Event()
-        self._step_budget_s = 0.0
         self._seq = 0
-        self._frames: deque[DepthFrame] = deque()
-        self._frames_ready = threading.Condition()
-        self._pending_plans: deque[tuple[float, Plan]] = deque()
-        self._build_parts()
+        self._live: LiveLoops | None = None
+        self._loop = ClosedLoop(self.robot, self.backend, self.world, config, self.sequence, self.notify)
 
-    # --- parts -----------------------------------------------------------------------------------
+    # --- the current closed loop and what it holds --------------------------------------------------
 
-    def _build_parts(self) -> None:
-        cfg = self.config
-        htmpc = replace(cfg.htmpc, constraint=cfg.constraint)
-        self.map = make_map(cfg.map_kind, self.robot, self.world, cfg.mapping)
-        self.controller = make_controller(self.robot, htmpc)
-        self.sequencer = Sequencer(self.robot, self.sequence, cfg.sequencer, htmpc.N, htmpc.dt_s)
-        self.plan: Plan | None = None
-        self.state: RobotState = self.backend.observe().state
-        self.last_edf: LocalEDF | None = None
-        self.last_control_wall = 0.0
-        self.timings_ms: dict[str, float] = {}
-        self.min_distance_m = math.nan
-        self.latest_frames: dict[str, DepthFrame] = {}
+    @property
+    def closed_loop(self) -> ClosedLoop:
+        return self._loop
+
+    @property
+    def live(self) -> LiveLoops | None:
+        """The live threads (None before `start_live` and after `shutdown`)."""
+        return self._live
+
+    @property
+    def config(self) -> RuntimeConfig:
+        return self._loop.config
+
+    @property
+    def map(self) -> WorldMap:
+        return self._loop.map
+
+    @property
+    def controller(self):
+        return self._loop.controller
+
+    @property
+    def sequencer(self) -> Sequencer:
+        return self._loop.sequencer
+
+    @property
+    def plan(self) -> Plan | None:
+        return self._loop.plan
+
+    @property
+    def state(self) -> RobotState:
+        return self._loop.state
+
+    @property
+    def problems(self) -> ProblemLog:
+        """Problems of the current run (QP failures, fallbacks, slow solves, faults, stale state, watchdog)."""
+        return self._loop.problems
 
     @property
     def time(self) -> float:
-        return self.state.t
+        return self._loop.state.t
+
+    @property
+    def log(self) -> RunLog:
+        return self._loop.log
+
+    @property
+    def run_state(self) -> RunState:
+        return self._loop.run_state
+
+    @property
+    def fault(self) -> str | None:
+        """Why the run is faulted (None when it is not); Start is refused until `reset`."""
+        return self._loop.fault_reason
+
+    @property
+    def last_edf(self) -> LocalEDF | None:
+        return self._loop.last_edf
+
+    @property
+    def latest_frames(self) -> dict[str, DepthFrame]:
+        return self._loop.latest_frames
+
+    @property
+    def last_control_wall(self) -> float:
+        return self._loop.last_control_wall
+
+    @property
+    def timings_ms(self) -> dict[str, float]:
+        return self._loop.timings_ms
+
+    @property
+    def min_distance_m(self) -> float:
+        return self._loop.min_distance_m
+
+    def motion_allowed(self) -> bool:
+        """Whether a non-zero command may go out now: running, or braking after a fault."""
+        return self._loop.run_state in MOVING_STATES
 
     # --- subscribers ---------------------------------------------------------------------------
 
     def subscribe(self, callback: Callable[[Snapshot], None]) -> Callable[[], None]:
         """Call `callback(snapshot)` on every publish; returns a function that unsubscribes."""
-        self._subscribers.append(callback)
-        return lambda: self._subscribers.remove(callback) if callback in self._subscribers else None
+        with self._publish_lock:
+            self._subscribers.append(callback)
+        return lambda: self._unsubscribe(callback)
+
+    def _unsubscribe(self, callback: Callable[[Snapshot], None]) -> None:
+        with self._publish_lock:
+            if callback in self._subscribers:
+                self._subscribers.remove(callback)
 
     def notify(self, message: str) -> None:
         """Queue an operator-facing message (error or warning) for the next snapshot."""
         log.warning(message)
-        self._messages.append(message)
+        with self._publish_lock:
+            self._messages.append(message)
 
     def snapshot(self, consume_messages: bool = False) -> Snapshot:
         """The current state of everything, as one value (`publish` hands the queued messages on)."""
-        with self._lock:
+        with self._publish_lock:
             self._seq += 1
-            with self._map_lock:
-                object_map = self.map.snapshot()
-                points = self.map.occupied_points()
-            if len(points) > 20000:
-                points = points[:: int(math.ceil(len(points) / 20000))]
-            edf = self.last_edf
-            clouds = _clouds(self.latest_frames.values())
-            messages = tuple(self._messages)
+            seq, messages = self._seq, tuple(self._messages)
             if consume_messages:
                 self._messages.clear()
-            return Snapshot(
-                seq=self._seq, wall_time=time.time(), state=self.state, run_state=self.run_state,
-                status=self.status_line(), boxes=self.world.boxes() if self.world else (), plan=self.plan,
-                base_path=None if self.sequencer.path is None else self.sequencer.path.copy(),
-                object_map=object_map, map_points=points, edf_slice=_edf_slice(edf), clouds=clouds,
-                progress=tuple(self.sequencer.progress), active_index=self.sequencer.index,
-                sequence_version=self.sequence_version, min_distance_m=self.min_distance_m,
-                collisions=len(self.world.collisions) if self.world else 0, timings_ms=dict(self.timings_ms),
-                map_kind=self.config.map_kind, constraint=self.config.constraint, speed=self.config.speed,
-                messages=messages, command=getattr(self, "last_command", None),
-                depth_frames=tuple(self.latest_frames.values()), problems=self.problems.counts())
+        return build_snapshot(self._loop, seq, messages, self.sequence_version)
 
     def publish(self) -> Snapshot:
         """Send a snapshot, with the messages queued since the last publish, to every subscriber."""
         snap = self.snapshot(consume_messages=True)
-        for callback in list(self._subscribers):
+        with self._publish_lock:
+            subscribers = list(self._subscribers)
+        for callback in subscribers:
             try:
                 callback(snap)
             except Exception:
@@ -178,106 +242,81 @@ class Runtime:
         return snap
 
     def status_line(self) -> str:
-        head = {RunState.ESTOP: "EMERGENCY STOP", RunState.PAUSED: "paused", RunState.IDLE: "idle"}.get(self.run_state)
-        line = self.sequencer.status_line()
-        plan = self.plan
-        if plan is not None and plan.status.value not in ("ok", "ok_with_slack"):
-            line += f" · controller: {plan.status.value} {plan.message}"
-        return f"{head} · {line}" if head else line
+        loop = self._loop
+        return status_line(loop.run_state, loop.view.status, loop.plan, loop.fault_reason)
 
     # --- run control (UI, bridge, CLI) -------------------------------------------------------------
 
     def start(self) -> None:
-        """Run the authored sequence from its first subtask (or resume when paused)."""
-        with self._lock:
-            if self.run_state == RunState.PAUSED:
-                self.run_state = RunState.RUNNING
-                return
-            if self.run_state == RunState.RUNNING:
-                return
-            self.sequencer = Sequencer(self.robot, self.sequence.model_copy(deep=True), self.config.sequencer,
-                                       self.controller.params.N, self.controller.params.dt_s)
-            self.controller.reset()
-            self.plan = None
-            self.run_state = RunState.RUNNING
-            log.info("sequence %r started (%d subtasks)", self.sequence.name, len(self.sequence.subtasks))
+        """Run the authored sequence from its first subtask (or resume when paused).
+
+        Raises `FaultError` (with the reason) while the run is faulted: `reset` first."""
+        self._loop.start(self.sequence)
 
     def pause(self) -> None:
         """Freeze the simulation and the controller (live mode); `start` resumes, `step` advances."""
-        with self._lock:
-            if self.run_state in (RunState.RUNNING, RunState.IDLE):
-                self.run_state = RunState.PAUSED
+        self._loop.pause()
 
     def step(self, seconds: float | None = None) -> None:
         """While paused, advance the simulation by one control period (or `seconds`)."""
-        with self._lock:
-            if self.run_state != RunState.PAUSED:
+        loop = self._loop
+        with loop.lock:
+            if loop.run_state != RunState.PAUSED:
                 self.notify("step works while paused")
                 return
-            self._step_budget_s += seconds or 1.0 / self.controller.params.control_rate_hz
+            loop.step_budget_s += seconds or 1.0 / loop.controller.params.control_rate_hz
 
     def stop(self) -> None:
-        """Stop the sequence; the robot comes to rest."""
-        self._halt(RunState.IDLE)
+        """Stop the sequence; the robot comes to rest (after a fault it goes on braking within its limits)."""
+        self._loop.stop()
 
     def emergency_stop(self) -> None:
         """Zero velocity at once; nothing moves until `start` or `reset`."""
-        self._halt(RunState.ESTOP)
+        self._loop.halt(RunState.ESTOP)
         self.notify("emergency stop")
 
-    def _halt(self, run_state: RunState) -> None:
-        """Enter `run_state`, drop the plan and any delayed ones, command zero velocity now."""
-        with self._lock:
-            self.run_state = run_state
-            self.plan = None
-            self._pending_plans.clear()
-            self.backend.command(np.zeros(9), self.time)
-
     def reset(self, scene: Scene | None = None) -> None:
-        """Reload the scene (robot back at its start), clear the map, the plan and the progress."""
-        with self._lock:
-            if scene is not None:
-                self._scene = scene
-            if self.world is not None:
-                self.world.load_scene(self._scene)
-                self.world.collisions.clear()
-            self.backend.command(np.zeros(9), self.time)
-            self.backend.observe()  # drop frames of the old scene
-            self.run_state = RunState.IDLE
-            self._frames.clear()
-            self._pending_plans.clear()
-            self.log = RunLog()
-            self.problems = ProblemLog(1e3 / self.config.htmpc.control_rate_hz)
-            with self._map_lock:
-                self._build_parts()
+        """Reload the scene (robot back at its start), clear the map, the plan, the progress and a fault;
+        a new closed loop, with new live threads if they were running."""
+        live = self._live is not None
+        self._stop_live()
+        if scene is not None:
+            self._scene = scene
+        if self.world is not None:
+            self.world.load_scene(self._scene)
+            self.world.collisions.clear()
+        self.backend.command(np.zeros(NQ), self.time)
+        old = self._loop
+        map_process = old.release_map()
+        old.log.close()
+        del old
+        release_free_memory()
+        self._loop = ClosedLoop(self.robot, self.backend, self.world, self._loop.config, self.sequence,
+                                self.notify)
+        if live:
+            self.start_live(map_process)
+        elif map_process is not None:
+            map_process.close(keep=False)
 
     def set_speed(self, speed: float) -> None:
         """Live mode: sim seconds per wall second (simulation only: a real robot runs in real time)."""
         if self.world is None:
             raise RuntimeError("speed applies to the simulation; a real robot runs in real time")
-        self.config = replace(self.config, speed=float(speed))
+        loop = self._loop
+        with loop.lock:
+            loop.config = replace(loop.config, speed=float(speed))
 
     def configure(self, map_kind: str | None = None, constraint: str | None = None) -> None:
         """Switch map kind or constraint kind; takes effect now (the map restarts empty)."""
-        with self._lock:
-            self.config = replace(self.config, map_kind=map_kind or self.config.map_kind,
-                                  constraint=constraint or self.config.constraint)
-            with self._map_lock:
-                if map_kind:
-                    self.map = make_map(self.config.map_kind, self.robot, self.world, self.config.mapping)
-                if constraint:
-                    self.controller = make_controller(self.robot, replace(self.config.htmpc, constraint=constraint))
+        self._loop.configure(map_kind, constraint)
 
     # --- authoring -------------------------------------------------------------------------------
 
     def set_sequence(self, sequence: TaskSequence) -> None:
         """Replace the authored sequence; a running sequence keeps its copy until the next start."""
-        with self._lock:
-            self.sequence = sequence
-            self.sequence_version += 1
-            if self.run_state != RunState.RUNNING:
-                self.sequencer = Sequencer(self.robot, sequence.model_copy(deep=True), self.config.sequencer,
-                                           self.controller.params.N, self.controller.params.dt_s)
+        self.sequence = sequence
+        self.sequence_version += 1
+        self._loop.set_sequence(sequence)
 
     # --- scene edits (simulation only) -------------------------------------------------------------
 
@@ -304,84 +343,6 @@ class Runtime:
         self.reset(scene)
         return scene
 
-    # --- one control period ----------------------------------------------------------------------
-
-    def _integrate_frames(self, now: float) -> None:
-        """Give the map every queued frame older than the modelled perception delay."""
-        due = []
-        while self._frames and self._frames[0].t <= now - self.config.perception_delay_s + 1e-9:
-            due.append(self._frames.popleft())
-        if not due:
-            return
-        for frame in due:
-            self.latest_frames[frame.camera] = frame
-        from core.types import Observation
-
-        t0 = time.perf_counter()
-        with self._map_lock:
-            self.map.integrate(Observation(state=self.state, frames=tuple(due), odometry=None))
-        self.timings_ms["mapping"] = (time.perf_counter() - t0) * 1e3
-
-    def _control(self, state: RobotState) -> None:
-        """Sequencer → references → HTMPC; the plan becomes active after the actuation delay."""
-        t0 = time.perf_counter()
-        with self._lock:
-            if self.run_state != RunState.RUNNING:
-                return
-            with self._map_lock:
-                occupied = self.map.occupied_points()
-                t_edf = time.perf_counter()
-                edf = self.map.local_edf(state.q[:2])
-                self.timings_ms["edf"] = (time.perf_counter() - t_edf) * 1e3
-            refs = self.sequencer.update(state, occupied, state.t)
-            self.last_edf = edf
-            if refs is None:
-                self.run_state = RunState.FAILED if self.sequencer.failed else RunState.FINISHED
-                self.plan = None
-                self._pending_plans.clear()
-                if self.sequencer.failed:
-                    self.notify(self.sequencer.status_line())
-                return
-            t_solve = time.perf_counter()
-            plan = self.controller.solve(state, refs, edf)
-            self.timings_ms["solve"] = (time.perf_counter() - t_solve) * 1e3
-            self.problems.observe_plan(plan, state.t, self.timings_ms["solve"])
-            self._pending_plans.append((state.t + self.config.actuation_delay_s, plan))
-            self.last_control_wall = time.time()
-        self.timings_ms["control"] = (time.perf_counter() - t0) * 1e3
-
-    def _command(self, t: float) -> np.ndarray:
-        """The velocity command at sim time t from the active plan (zero when none)."""
-        with self._lock:
-            while self._pending_plans and self._pending_plans[0][0] <= t + 1e-9:
-                self.plan = self._pending_plans.popleft()[1]
-            # paused, only the simulation freezes; a real robot would keep moving, so it gets zero
-            moving = self.run_state == RunState.RUNNING or (self.run_state == RunState.PAUSED and self.world)
-            qdot = self.plan.velocity_at(t) if (moving and self.plan is not None) else np.zeros(9)
-        if not np.all(np.isfinite(qdot)):
-            self.problems.record(ProblemKind.FAULT, t, "non-finite command from the plan")
-            self.notify("non-finite command from the plan: stopping")
-            qdot = np.zeros(9)
-        qdot = self.robot.limits.clip_velocity(qdot)
-        self.backend.command(qdot, t)
-        self.last_command = qdot
-        return qdot
-
-    def _observe(self) -> RobotState:
-        obs = self.backend.observe()
-        self.state = obs.state
-        if obs.frames:
-            with self._frames_ready:
-                self._frames.extend(obs.frames)
-                self._frames_ready.notify()
-        return obs.state
-
-    def _measure(self, qdot: np.ndarray) -> None:
-        if self.world is not None:
-            self.min_distance_m, _ = self.world.robot_box_distance()
-        self.log.record(self.state, self.plan, self.min_distance_m, len(self.world.collisions) if self.world else 0,
-                        self.run_state, self.sequencer.index, qdot, dict(self.timings_ms))
-
     # --- lockstep --------------------------------------------------------------------------------
 
     def run_lockstep(self, max_duration_s: float, until_done: bool = True, publish_every: int = 0,
@@ -390,154 +351,61 @@ class Runtime:
 
         Requires the embedded simulation. `publish_every` > 0 publishes a snapshot every that many
         control periods; `on_control` is called after each control step (experiments edit the scene there).
+        A fault ends the run once the robot has braked to rest (`run_state` FAULT, `fault` the reason);
+        a faulted runtime refuses to run (`FaultError`) until `reset`.
         """
         if not isinstance(self.backend, SimRobot):
             raise RuntimeError("lockstep needs the embedded simulation")
-        p = self.controller.params
+        loop = self._loop
+        p = loop.controller.params
         dt_cmd = 1.0 / p.command_rate_hz
         per_control = max(1, int(round(p.command_rate_hz / p.control_rate_hz)))
-        if self.run_state not in (RunState.RUNNING,):
+        if loop.run_state != RunState.RUNNING:
             self.start()
-        self.controller.enforce_timeout = False  # simulated time waits for the solver
+        loop.controller.enforce_timeout = False  # simulated time waits for the solver
         t_end = self.time + max_duration_s
-        k = 0
+        k, fault_ticks = 0, 0
+
+        def after_control() -> None:
+            if on_control is not None:
+                on_control(self)
+            if publish_every and (k // per_control) % publish_every == 0:
+                self.publish()
+
         while self.time < t_end - 1e-9:
-            state = self._observe()
-            self._integrate_frames(state.t)
-            if k % per_control == 0:
-                self._control(state)
-                if on_control is not None:
-                    on_control(self)
-                if publish_every and (k // per_control) % publish_every == 0:
-                    self.publish()
-            qdot = self._command(state.t)
-            if k % per_control == 0:
-                self._measure(qdot)
-            self.backend.step(dt_cmd)
+            loop.tick(dt_cmd, k % per_control == 0, after_control)
+            loop.guarded("physics", self.backend.step, dt_cmd)
             k += 1
-            if until_done and self.run_state in (RunState.FINISHED, RunState.FAILED, RunState.ESTOP):
+            if loop.fault_reason is not None:
+                fault_ticks += 1
+                if loop.braked() or fault_ticks * dt_cmd > FAULT_BRAKE_LIMIT_S:
+                    break
+            elif until_done and loop.run_state in (RunState.FINISHED, RunState.FAILED, RunState.ESTOP):
                 break
-        self.state = self.backend.observe().state
-        return self.log
+        loop.guarded("observe", loop.observe, dt_cmd)
+        return loop.log
 
     # --- live ------------------------------------------------------------------------------------
 
-    def start_live(self) -> None:
-        """Start the live threads (physics for the simulation, I/O, mapping, control, publishing)."""
-        self._stop_threads.clear()
-        self.controller.enforce_timeout = True
-        loops = [(self._io_loop, "io"), (self._map_loop, "mapping"), (self._control_loop, "control"),
-                 (self._publish_loop, "publish")]
-        if isinstance(self.backend, SimRobot):
-            loops.insert(0, (self._physics_loop, "physics"))
-        for target, name in loops:
-            thread = threading.Thread(target=self._guard(target), name=name, daemon=True)
-            thread.start()
-            self._threads.append(thread)
+    def start_live(self, map_process: MapProcess | None = None) -> None:
+        """Start the supervised live threads (physics for the simulation, I/O, mapping, control, publishing);
+        the object or voxel map in its own process (`map_process`, when one is handed on by `reset`)."""
+        if self._live is not None:
+            return
+        limit_arenas()  # the live threads are rebuilt on every Reset (app/native_memory.py)
+        self._live = LiveLoops(self._loop, self.publish, self.config.publish_hz)
+        self._live.start(map_process)
 
-    def _guard(self, loop: Callable[[], None]) -> Callable[[], None]:
-        """A crashing loop stops the robot and says so instead of dying silently."""
-        def run() -> None:
-            try:
-                loop()
-            except Exception as err:
-                log.exception("%s loop crashed", threading.current_thread().name)
-                self.problems.record(ProblemKind.FAULT, self.time, f"{threading.current_thread().name} loop: {err}")
-                self.emergency_stop()
-                self.notify(f"{threading.current_thread().name} loop crashed: {err}")
-        return run
+    def _stop_live(self) -> None:
+        live, self._live = self._live, None
+        if live is None:
+            return
+        stuck = live.stop()
+        if stuck:
+            self.notify(f"loops that did not stop in time (left behind): {', '.join(stuck)}")
 
     def shutdown(self) -> None:
-        """Stop the live threads and the robot."""
-        self._stop_threads.set()
-        with self._frames_ready:
-            self._frames_ready.notify_all()
-        for thread in self._threads:
-            thread.join(timeout=3.0)
-        self._threads.clear()
-        self.backend.command(np.zeros(9), self.time)
-
-    def _physics_loop(self) -> None:
-        try:
-            self._run_physics()
-        finally:  # GL contexts belong to this thread: free the cameras' renderers here
-            self.backend.close()
-
-    def _run_physics(self) -> None:
-        dt = 0.01
-        next_tick = time.perf_counter()
-        while not self._stop_threads.is_set():
-            with self._lock:
-                paused = self.run_state == RunState.PAUSED and self._step_budget_s <= 1e-9
-                if self.run_state == RunState.PAUSED and not paused:
-                    self._step_budget_s -= dt
-            if not paused:
-                self.backend.step(dt)
-            next_tick += dt / self.config.speed
-            delay = next_tick - time.perf_counter()
-            if delay > 0:
-                time.sleep(delay)
-            else:
-                next_tick = time.perf_counter()  # behind: never catch up in a burst
-
-    def _io_loop(self) -> None:
-        period = 1.0 / self.controller.params.command_rate_hz
-        while not self._stop_threads.wait(period / (max(self.config.speed, 1.0) if self.world else 1.0)):
-            state = self._observe()
-            self._last_qdot = self._command(state.t)
-
-    def _map_loop(self) -> None:
-        while not self._stop_threads.is_set():
-            with self._frames_ready:
-                self._frames_ready.wait(timeout=0.2)
-                if not self._frames:
-                    continue
-                # behind? keep only the newest frame of each camera
-                newest: dict[str, DepthFrame] = {}
-                for f in self._frames:
-                    newest[f.camera] = f
-                self._frames.clear()
-                self._frames.extend(sorted(newest.values(), key=lambda f: f.t))
-            self._integrate_frames(self.state.t + self.config.perception_delay_s)
-
-    def _control_loop(self) -> None:
-        period = 1.0 / self.controller.params.control_rate_hz
-        next_t = self.time
-        while not self._stop_threads.is_set():
-            if self.time + 1e-9 < next_t:
-                time.sleep(0.002)
-                continue
-            if self.time - next_t > period and self.run_state == RunState.RUNNING:
-                self.problems.record(ProblemKind.WATCHDOG, self.time, f"control step {self.time - next_t:.2f} s late")
-            next_t = self.time + period
-            self._control(self.state)
-            self._measure(getattr(self, "_last_qdot", np.zeros(9)))
-
-    def _publish_loop(self) -> None:
-        period = 1.0 / self.config.publish_hz
-        while not self._stop_threads.wait(period):
-            self.publish()
-
-
-CLOUD_STRIDE_PX = 8
-"""Every 8th pixel in u and v: about 1200 points per 320 × 240 frame, enough to see what a camera sees."""
-
-
-def _clouds(frames) -> np.ndarray | None:
-    from core.mapping import frame_points
-
-    pts = [frame_points(f, stride=CLOUD_STRIDE_PX) for f in frames]
-    return np.concatenate(pts) if pts else None
-
-
-def _edf_slice(edf: LocalEDF | None) -> EDFSlice | None:
-    if edf is None:
-        return None
-    k = int(np.clip(round((EDF_SLICE_Z_M - edf.origin[2]) / edf.voxel), 0, edf.values.shape[2] - 1))
-    return EDFSlice(origin=edf.origin[:2].copy(), voxel=edf.voxel, z_m=float(edf.origin[2] + k * edf.voxel),
-                    values=edf.values[:, :, k].copy())
-
-
-def outcome_counts(progress) -> dict[str, int]:
-    """How many subtasks ended in each outcome."""
-    return {o.value: sum(p.outcome == o for p in progress) for o in Outcome}
+        """Stop the live threads and the robot; an isolated map comes back into this process."""
+        self._stop_live()
+        self._loop.restore_map()
+        self.backend.command(np.zeros(NQ), self.time)

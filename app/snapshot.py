@@ -25,6 +25,9 @@ class RunState(StrEnum):
     FINISHED = "finished"
     FAILED = "failed"
     ESTOP = "emergency_stop"
+    FAULT = "fault"
+    """A loop raised or the robot state was not finite: the robot brakes along its last plan within the
+    acceleration limits; Start is refused until Reset."""
 
 
 @dataclass(frozen=True)
@@ -74,3 +77,5 @@ class Snapshot:
     """The newest depth frame of each camera (recordings keep them on request)."""
     problems: tuple[ProblemCount, ...] = ()
     """Problems of the run so far, counted by kind (`app.problems`)."""
+    fault: str | None = None
+    """Why the run is in `RunState.FAULT` (kept until Reset), None without a fault."""

@@ -114,6 +114,23 @@ class Sequencer:
         self._hold_base: np.ndarray | None = None
         self._ee_waypoint = 0
         self._base_waypoint = 0
+        self._paused_at: float | None = None
+
+    def pause(self, t: float) -> None:
+        """Stop the subtask clock at time t: paused time counts toward neither `timeout_s` nor `dwell_s`."""
+        if self._paused_at is None:
+            self._paused_at = t
+
+    def resume(self, t: float) -> None:
+        """Run the subtask clock again from time t (the paused span moves the subtask's start forward)."""
+        if self._paused_at is None:
+            return
+        span = max(0.0, t - self._paused_at)
+        self._paused_at = None
+        if self._started_t is not None:
+            self._started_t += span
+        if self._held_since is not None:
+            self._held_since += span
 
     @property
     def finished(self) -> bool:

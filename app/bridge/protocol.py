@@ -215,6 +215,8 @@ class RobotStateOut(BaseModel):
     v: list[float]
     run_state: str
     status: str
+    fault: str | None = None
+    """Why the run is in the `fault` run state (a loop failed or the state was not finite); null otherwise."""
 
 
 class PlanOut(BaseModel):
@@ -269,6 +271,8 @@ class RunStatus(BaseModel):
 
     run_state: str
     status: str
+    fault: str | None = None
+    """Why the run is faulted (Start is refused until Reset); null otherwise."""
 
 
 class SequenceOut(BaseModel):

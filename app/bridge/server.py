@@ -106,7 +106,7 @@ class BridgeServer:
         """Give the operator API, the stale-state pause and the motion gate this runtime."""
         self.app.state.attachment = RuntimeAttachment(runtime)
         if runtime.backend is self.robot:
-            self.robot.motion_allowed = lambda: runtime.run_state == RunState.RUNNING
+            self.robot.motion_allowed = runtime.motion_allowed  # running, or braking after a fault
             self.robot.halt_reason = lambda: halt_reason(runtime.run_state)
 
     @property

@@ -37,7 +37,7 @@ def json_array(a: np.ndarray) -> list:
 def state_out(snap: Snapshot) -> RobotStateOut:
     s = snap.state
     return RobotStateOut(t=s.t, q=[float(x) for x in s.q], v=[float(x) for x in s.v],
-                         run_state=snap.run_state.value, status=snap.status)
+                         run_state=snap.run_state.value, status=snap.status, fault=snap.fault)
 
 
 def plan_out(plan: Plan) -> PlanOut:

@@ -6,7 +6,7 @@ from __future__ import annotations
 from app.snapshot import RunState
 
 RUN_STATE = {RunState.RUNNING: "▶", RunState.PAUSED: "‖", RunState.ESTOP: "⊘", RunState.FINISHED: "✔",
-             RunState.FAILED: "✖", RunState.IDLE: "■"}
+             RunState.FAILED: "✖", RunState.IDLE: "■", RunState.FAULT: "⚠"}
 """Run state → glyph for the status line (not ⏸ or ⛔: no font here has them)."""
 OTHER_STATE = "■"
 OUTCOME = {"done": "✔", "failed": "✖", "active": "▶", "pending": "·"}

@@ -16,6 +16,7 @@ from core.sim.scene import Box, Scene, random_scene
 from core.sim.world import SceneEditError
 from tasks import BasePose, BaseSubtask, TaskSequence
 from tasks.sequence_file import EXAMPLES_DIR, load_sequence
+from tests.app.bridge.conftest import wait_until
 from tests.app.conftest import ROOT
 
 NAV = load_sequence(EXAMPLES_DIR / "navigation_through_boxes.yaml")
@@ -99,8 +100,7 @@ def test_live_run_control_and_subscribers():
     rt.start_live()
     try:
         rt.start()
-        time.sleep(1.5)
-        assert rt.state.v[0] > 0.1  # driving
+        assert wait_until(lambda: rt.state.v[0] > 0.1, timeout_s=30)  # driving (a loaded machine starts slowly)
         rt.pause()
         time.sleep(0.3)
         t_paused = rt.time

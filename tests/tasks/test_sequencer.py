@@ -161,3 +161,34 @@ def test_base_subtask_holds_the_hand_in_the_base_frame(robot):
     np.testing.assert_allclose(refs.ee.position, [[0.4, -0.55, 1.0]])
     np.testing.assert_allclose(refs.ee.rotation[0], hold.rotation())
     assert refs.base.xy.shape == (11, 2)  # the base still follows its path
+
+
+def test_paused_time_counts_toward_neither_timeout_nor_dwell(robot):
+    """A real robot's clock runs on while the run is paused: 9 s paused within an 8 s timeout is no failure."""
+    seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=4.0, y=0.0), timeout_s=8.0, dwell_s=1.0)])
+    s = Sequencer(robot, seq)
+    s.update(state_at(0.0, 0.0), np.zeros((0, 3)), 0.0)
+    s.update(state_at(0.5, 0.0), np.zeros((0, 3)), 2.0)
+    s.pause(2.0)
+    s.resume(11.0)
+    assert s.update(state_at(0.6, 0.0), np.zeros((0, 3)), 11.5) is not None
+    assert s.progress[0].outcome == Outcome.ACTIVE and s.progress[0].elapsed_s == pytest.approx(2.5)
+    s.update(state_at(4.0, 0.0), np.zeros((0, 3)), 12.0)  # at the goal: the dwell starts
+    s.pause(12.5)
+    s.pause(13.0)  # a second pause while paused changes nothing
+    s.resume(20.0)
+    s.update(state_at(4.0, 0.0), np.zeros((0, 3)), 20.2)
+    assert s.progress[0].outcome == Outcome.ACTIVE and s.progress[0].held_s == pytest.approx(0.7)
+    s.update(state_at(4.0, 0.0), np.zeros((0, 3)), 20.6)
+    assert s.progress[0].outcome == Outcome.DONE
+    s.update(state_at(4.0, 0.0), np.zeros((0, 3)), 21.0)
+    s.resume(30.0)  # resume without a pause: nothing to shift
+    assert s.finished
+
+
+def test_without_the_pause_the_same_wait_times_out(robot):
+    seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=4.0, y=0.0), timeout_s=8.0)])
+    s = Sequencer(robot, seq)
+    s.update(state_at(0.0, 0.0), np.zeros((0, 3)), 0.0)
+    assert s.update(state_at(0.6, 0.0), np.zeros((0, 3)), 11.5) is None
+    assert s.progress[0].outcome == Outcome.FAILED and "timed out" in s.progress[0].message

@@ -11,6 +11,7 @@ from app.bridge.auth import require_token
 from app.bridge.dependencies import Attached, Link
 from app.bridge.protocol import ConfigIn, RunStatus, StepIn
 from app.bridge.routes import AUTH_ERRORS, CONFLICT
+from app.closed_loop import FaultError
 from app.snapshot import RunState
 
 router = APIRouter(prefix="/api/run", tags=["run control"], dependencies=[Depends(require_token)],
@@ -20,7 +21,7 @@ router = APIRouter(prefix="/api/run", tags=["run control"], dependencies=[Depend
 def _status(attached: RuntimeAttachment) -> RunStatus:
     attached.invalidate()
     runtime = attached.runtime
-    return RunStatus(run_state=runtime.run_state.value, status=runtime.status_line())
+    return RunStatus(run_state=runtime.run_state.value, status=runtime.status_line(), fault=runtime.fault)
 
 
 def _conflict(detail: str) -> HTTPException:
@@ -29,10 +30,14 @@ def _conflict(detail: str) -> HTTPException:
 
 @router.post("/start", responses=CONFLICT)
 def start(request: Request, attached: Attached, link: Link) -> RunStatus:
-    """Run the sequence from its first subtask, or resume a paused run. 409 without fresh robot state."""
+    """Run the sequence from its first subtask, or resume a paused run. 409 without fresh robot state, and
+    while the run is faulted (the detail says why; reset first)."""
     if attached.runtime.backend is request.app.state.robot and link.is_stale():
         raise _conflict("no fresh robot state: is the driver connected and streaming?")
-    attached.runtime.start()
+    try:
+        attached.runtime.start()
+    except FaultError as err:
+        raise _conflict(str(err)) from err
     return _status(attached)
 
 
@@ -63,7 +68,7 @@ def stop(attached: Attached) -> RunStatus:
 
 @router.post("/reset")
 def reset(attached: Attached) -> RunStatus:
-    """Reload the scene (simulation: robot back at its start), clear map, plan and progress."""
+    """Reload the scene (simulation: robot back at its start), clear map, plan, progress and a fault."""
     attached.runtime.reset()
     return _status(attached)
 

@@ -1,0 +1,508 @@
+"""`ClosedLoop`: one tick of the paper's closed loop, observe → map → control → command → measure, and the
+parts it owns (map, controller, sequencer, plan, run state, fault, run log).
+
+Lockstep calls `tick()` directly (simulated time, one thread, deterministic). Live mode
+(`app/live_loops.py`) schedules the same stages on supervised threads: `observe` + `command` (I/O, 100 Hz),
+`integrate_frames` (mapping, as frames arrive), `control` + `measure` (10 Hz).
+
+Fail safe: any exception in a stage, or a non-finite robot state, calls `fault(reason)`: the robot brakes
+along the plan it was following, within the acceleration limits (`core.htmpc.safety.brake_along`; from the
+last command when there is no plan), the run enters `RunState.FAULT` with the reason, and `start` is refused
+until the runtime is reset (which builds a new `ClosedLoop`). The emergency stop is not a fault: it
+commands zero at once.
+
+Locks, always taken in this order (never an earlier one while holding a later one):
+
+1. `step_lock`     one control step at a time, against run control that swaps parts (start, pause and
+                   resume, configure, set_sequence). Held across the sequencer and the solve; only the
+                   control thread holds it for long.
+2. `command_lock`  computing and sending one velocity command, against the e-stop's zero and a fault's
+                   switch to braking (no stale command can follow either). Re-entrant.
+3. `lock`          the run: `run_state`, `fault_reason`, `plan` and the delayed plans, `view`, `state`,
+                   `timings_ms`, `latest_frames`, `last_edf`, `min_distance_m`, the step budget. Held only
+                   for reads and writes: never around a solve, a map call or a backend call.
+4. `map_lock`      the map (`integrate`, `local_edf`, `occupied_points`, `snapshot`, replacing it), taken
+                   through `using_map`; in live mode the object and voxel maps run in their own process
+                   (`isolate_map`), which serialises its own calls, and the lock only guards the swap.
+5. `frames_ready`  the queue of depth frames waiting for the map (a Condition).
+
+Locks inside the parts (`SimWorld.lock`, the bridge's `RobotLink`) and the runtime's publishing lock are
+leaves: taken last and never held while calling back into the loop.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, TypeVar
+
+import numpy as np
+
+from app.components import make_controller, make_map
+from app.map_process import MapProcess, MapProcessError
+from app.problems import ProblemKind, ProblemLog
+from app.run_log import RunLog
+from app.snapshot import RunState
+from core.htmpc.safety import brake_along, braking_plan
+from core.mapping.world_map import WorldMap
+from core.robot.model import RobotModel
+from core.sim.world import SimWorld
+from core.types import NQ, DepthFrame, LocalEDF, Observation, Plan, PlanStatus, RobotBackend, RobotState
+from tasks.schema import TaskSequence
+from tasks.sequencer import Sequencer, SubtaskProgress
+
+if TYPE_CHECKING:
+    from app.runtime import RuntimeConfig
+    from core.htmpc import HTMPC
+
+log = logging.getLogger(__name__)
+T = TypeVar("T")
+PROCESS_MAP_KINDS = ("object", "voxel")
+"""Maps that live mode runs in their own process (the ground-truth map reads the simulation in this one)."""
+MAP_PATIENCE_S = 1.0
+"""Stopping: how long to wait for a map call in flight before cutting its process short."""
+MOVING_STATES = (RunState.RUNNING, RunState.FAULT)
+"""Run states in which the active plan is commanded (FAULT: the braking plan)."""
+
+
+class FaultError(RuntimeError):
+    """Start refused: the run is in `RunState.FAULT` (the message says why); Reset clears it."""
+
+
+@dataclass(frozen=True)
+class SequenceView:
+    """What the sequencer shows the operator, copied after every change (the sequencer itself belongs
+    to the control step)."""
+
+    progress: tuple[SubtaskProgress, ...]
+    index: int
+    path: np.ndarray | None
+    status: str
+
+    @staticmethod
+    def of(sequencer: Sequencer) -> SequenceView:
+        path = None if sequencer.path is None else sequencer.path.copy()
+        return SequenceView(tuple(sequencer.progress), sequencer.index, path, sequencer.status_line())
+
+
+def finite_state(state: RobotState) -> bool:
+    return bool(np.isfinite(state.t) and np.all(np.isfinite(state.q)) and np.all(np.isfinite(state.v)))
+
+
+def one_line(text: str, limit: int = 300) -> str:
+    """An exception message as one line for the operator."""
+    line = " ".join(str(text).split())
+    return line if len(line) <= limit else line[: limit - 1] + "…"
+
+
+class ClosedLoop:
+    """The robot backend, map, sequencer and controller of one run, stepped by `tick` or the live loops."""
+
+    def __init__(self, robot: RobotModel, backend: RobotBackend, world: SimWorld | None, config: RuntimeConfig,
+                 sequence: TaskSequence, notify: Callable[[str], None] = log.warning) -> None:
+        self.robot, self.backend, self.world, self.config = robot, backend, world, config
+        self.notify = notify
+        self.step_lock = threading.Lock()
+        self.command_lock = threading.RLock()
+        self.lock = threading.RLock()
+        self.map_lock = threading.Lock()
+        self.frames_ready = threading.Condition()
+        htmpc = replace(config.htmpc, constraint=config.constraint)
+        self.map: WorldMap = make_map(config.map_kind, robot, world, config.mapping)
+        self.controller: HTMPC = make_controller(robot, htmpc)
+        self.sequencer = self._sequencer(sequence)
+        self.view = SequenceView.of(self.sequencer)
+        self.run_state = RunState.IDLE
+        self.fault_reason: str | None = None
+        self.plan: Plan | None = None
+        self._pending_plans: deque[tuple[float, Plan]] = deque()
+        self._frames: deque[DepthFrame] = deque()
+        self.state: RobotState = self._initial_state()
+        self.last_qdot = np.zeros(NQ)
+        self.commanded = False
+        """Whether a command went out yet (snapshots show none before the first)."""
+        self._last_command_t = -math.inf
+        self.last_edf: LocalEDF | None = None
+        self.last_control_wall = 0.0
+        self.timings_ms: dict[str, float] = {}
+        self.min_distance_m = math.nan
+        self.latest_frames: dict[str, DepthFrame] = {}
+        self.step_budget_s = 0.0
+        self.max_plan_age_s = math.inf
+        """Running on a plan from a control step older than this (robot s) is a fault (live mode sets it;
+        lockstep is never late)."""
+        self._last_control_t = -math.inf
+        self.log = RunLog()
+        self.problems = ProblemLog(1e3 / config.htmpc.control_rate_hz)
+
+    def _initial_state(self) -> RobotState:
+        state = self.backend.observe().state  # also drops frames of an earlier scene
+        if finite_state(state):
+            return state
+        zeros = np.zeros(NQ)
+        return RobotState(state.t if np.isfinite(state.t) else 0.0, zeros, zeros.copy())
+
+    def _sequencer(self, sequence: TaskSequence) -> Sequencer:
+        p = self.controller.params
+        return Sequencer(self.robot, sequence.model_copy(deep=True), self.config.sequencer, p.N, p.dt_s)
+
+    @property
+    def moving(self) -> bool:
+        """Whether the active plan is commanded now (paused, only the simulation freezes: a real robot
+        would keep moving, so it gets zero)."""
+        return self.run_state in MOVING_STATES or (self.run_state == RunState.PAUSED and self.world is not None)
+
+    # --- run control ---------------------------------------------------------------------------------
+
+    def start(self, sequence: TaskSequence) -> None:
+        """Run `sequence` from its first subtask, or resume when paused; FaultError while faulted."""
+        with self.step_lock:
+            with self.lock:
+                if self.fault_reason is not None:
+                    raise FaultError(f"fault: {self.fault_reason}; Reset before starting again")
+                if self.run_state == RunState.RUNNING:
+                    return
+                if self.run_state == RunState.PAUSED:
+                    self.sequencer.resume(self.state.t)
+                    if self.world is None:  # a real robot held still while paused: its old plan is void
+                        self.plan = None
+                        self._pending_plans.clear()
+                    self._last_control_t = self.state.t  # the pause is no lateness of the control loop
+                    self.run_state = RunState.RUNNING
+                    return
+            sequencer = self._sequencer(sequence)
+            self.controller.reset()
+            with self.lock:
+                self.sequencer, self.view = sequencer, SequenceView.of(sequencer)
+                self.plan = None
+                self._pending_plans.clear()
+                self.run_state = RunState.RUNNING
+        log.info("sequence %r started (%d subtasks)", sequence.name, len(sequence.subtasks))
+
+    def pause(self) -> None:
+        with self.step_lock, self.lock:
+            if self.run_state in (RunState.RUNNING, RunState.IDLE):
+                self.run_state = RunState.PAUSED
+                self.sequencer.pause(self.state.t)
+
+    def halt(self, run_state: RunState) -> None:
+        """Enter `run_state`, drop the plan and any delayed ones, command zero velocity now."""
+        with self.command_lock:
+            with self.lock:
+                self.run_state = run_state
+                self.plan = None
+                self._pending_plans.clear()
+                t = self.state.t
+            self.last_qdot = np.zeros(NQ)
+            self.backend.command(self.last_qdot.copy(), t)
+
+    def stop(self) -> None:
+        """Stop the sequence (zero command); while faulted, the robot goes on braking within its limits."""
+        if self.fault_reason is None:
+            self.halt(RunState.IDLE)
+
+    def set_sequence(self, sequence: TaskSequence) -> None:
+        """A new authored sequence: shown at once unless a run is under way (it keeps its copy)."""
+        with self.step_lock, self.lock:
+            if self.run_state != RunState.RUNNING:
+                self.sequencer = self._sequencer(sequence)
+                self.view = SequenceView.of(self.sequencer)
+
+    def configure(self, map_kind: str | None, constraint: str | None) -> None:
+        """Swap the map (empty) and/or the controller; takes effect at the next control step."""
+        with self.step_lock:
+            with self.lock:
+                self.config = replace(self.config, map_kind=map_kind or self.config.map_kind,
+                                      constraint=constraint or self.config.constraint)
+            if map_kind:
+                new_map = make_map(self.config.map_kind, self.robot, self.world, self.config.mapping)
+                with self.map_lock:
+                    old, self.map = self.map, new_map
+                if isinstance(old, MapProcess):
+                    self.isolate_map(old)  # the new map runs in the same worker
+            if constraint:
+                controller = make_controller(self.robot, replace(self.config.htmpc, constraint=constraint))
+                controller.enforce_timeout = self.controller.enforce_timeout
+                with self.lock:
+                    self.controller = controller
+
+    def isolate_map(self, process: MapProcess | None = None) -> None:
+        """Live: run an object or voxel map in its own process (app/map_process.py), so that its CPU work
+        never holds the GIL the I/O and control loops need; in `process` (still running) if given."""
+        with self.map_lock:
+            if self.config.map_kind not in PROCESS_MAP_KINDS or isinstance(self.map, MapProcess):
+                if process is not None:
+                    process.close(keep=False)
+                return
+            if process is not None:
+                try:
+                    process.adopt(self.map)
+                    self.map = process
+                    return
+                except MapProcessError as err:
+                    log.warning("a new mapping process instead: %s", err)
+                    process.close(keep=False)
+            self.map = MapProcess(self.map)
+
+    def release_map(self) -> MapProcess | None:
+        """Reset: the isolated map's process, to run the next loop's map (None if there is none)."""
+        with self.map_lock:
+            process = self.map
+            return process if isinstance(process, MapProcess) and process.alive else None
+
+    def restore_map(self, keep: bool = True) -> None:
+        """End an isolated map's process, bringing the map back into this one (with `keep`; else, or if it
+        cannot be handed back, a fresh map). A call stuck on the process is cut short."""
+        with self.map_lock:
+            isolated = self.map
+            if not isinstance(isolated, MapProcess):
+                return
+            world_map = isolated.close(keep, patience_s=MAP_PATIENCE_S)
+            self.map = world_map or make_map(self.config.map_kind, self.robot, self.world, self.config.mapping)
+
+    @contextlib.contextmanager
+    def using_map(self) -> Iterator[WorldMap]:
+        """The map for a call, under the map lock; an isolated map serialises its own calls and answers
+        queries from what its latest integration brought back, so then the lock is not held (control
+        never waits for an integration in progress)."""
+        with self.map_lock:
+            world_map = self.map
+            if not getattr(world_map, "serialises_calls", False):
+                yield world_map
+                return
+        yield world_map
+
+    def take_physics_step(self, dt: float) -> bool:
+        """Live physics: whether to advance by dt now (not while paused, unless `step` granted time)."""
+        with self.lock:
+            if self.run_state != RunState.PAUSED:
+                return True
+            if self.step_budget_s <= 1e-9:
+                return False
+            self.step_budget_s -= dt
+            return True
+
+    # --- faults --------------------------------------------------------------------------------------
+
+    def fault(self, reason: str) -> None:
+        """Brake along the commanded plan within the acceleration limits and hold the run in FAULT.
+
+        The first reason stands until reset; never raises (it is what the loops call when they fail)."""
+        reason = one_line(reason)
+        try:
+            with self.command_lock, self.lock:
+                if self.fault_reason is not None:
+                    return
+                self.plan = self._braking_plan(self.state.t)  # along the plan commanded last (not a newer one)
+                self._pending_plans.clear()
+                self.run_state = RunState.FAULT
+                self.fault_reason = reason  # last: whoever sees the reason sees the FAULT state
+                self.log.event(self.state.t, "fault", reason)
+                self.problems.record(ProblemKind.FAULT, self.state.t, reason)
+        except Exception:  # the fault must hold even if braking could not be planned: zero is all that is left
+            log.exception("planning the fault brake failed")
+            with self.lock:
+                self.plan, self.run_state, self.fault_reason = None, RunState.FAULT, reason
+            self.problems.record(ProblemKind.FAULT, self.state.t, reason)
+        self.notify(f"fault: {reason}: braking to a stop within the limits; Reset to go on")
+
+    def _braking_plan(self, t: float) -> Plan:
+        """The commanded plan slowed to a stop along its path within a_max; without one (or when it cannot
+        be followed), every joint ramps down from the last command within a_max."""
+        lim, p = self.robot.limits, self.controller.params
+        plan = None
+        if self.plan is not None and self.moving:
+            plan = brake_along(self.plan, t, lim, p.N, p.dt_s, PlanStatus.STOPPING, "fault: braking along the plan")
+        if plan is None:
+            last = RobotState(t, self.state.q, np.asarray(self.last_qdot, float))
+            plan = braking_plan(last, lim, p.N, p.dt_s, PlanStatus.STOPPING, "fault: braking")
+        return plan
+
+    def guarded(self, stage: str, fn: Callable[..., T], *args) -> T | None:
+        """`fn(*args)`; an exception of any kind becomes a fault naming `stage` (None is returned)."""
+        try:
+            return fn(*args)
+        except Exception as err:
+            if self.fault_reason is None:  # the operator gets one line (fault); the traceback is for debugging
+                log.debug("%s failed", stage, exc_info=True)
+            self.fault(f"{stage}: {type(err).__name__}: {err}")
+            return None
+
+    def braked(self) -> bool:
+        """Whether a faulted run has come to rest (its braking plan ended and the command is zero)."""
+        with self.lock:
+            plan, t = self.plan, self.state.t
+        ended = plan is None or t >= plan.t + plan.dt * plan.u.shape[0] or not np.any(plan.velocity_at(t))
+        return self.fault_reason is not None and ended and not np.any(self.last_qdot)
+
+    # --- the stages ----------------------------------------------------------------------------------
+
+    def observe(self, dt_hint_s: float) -> RobotState:
+        """Latest robot state and frames. A non-finite state is a fault: the last finite state is kept (its
+        time advanced by `dt_hint_s` when the time itself is not finite) and the frames are dropped."""
+        obs: Observation = self.backend.observe()
+        state = obs.state
+        if not finite_state(state):
+            previous = self.state
+            t = float(state.t) if np.isfinite(state.t) else previous.t + dt_hint_s
+            with self.lock:
+                self.state = RobotState(t, previous.q, previous.v)
+            self.fault(f"non-finite robot state at t = {t:.2f} s")
+            return self.state
+        if obs.frames and self.fault_reason is None:
+            with self.frames_ready:
+                self._frames.extend(obs.frames)
+                self.frames_ready.notify()
+        with self.lock:
+            self.state = state
+        return state
+
+    def advance_clock(self, dt_s: float) -> RobotState:
+        """No observation this period (the backend raised): keep the last state, its time moved on by dt_s,
+        so a braking plan still runs down."""
+        with self.lock:
+            self.state = replace(self.state, t=self.state.t + dt_s)
+            return self.state
+
+    def wait_for_frames(self, timeout_s: float) -> bool:
+        """Live mapping: wait for frames; when behind, keep only the newest frame of each camera."""
+        with self.frames_ready:
+            if not self._frames:
+                self.frames_ready.wait(timeout=timeout_s)
+            if not self._frames:
+                return False
+            newest: dict[str, DepthFrame] = {}
+            for f in self._frames:
+                newest[f.camera] = f
+            self._frames.clear()
+            self._frames.extend(sorted(newest.values(), key=lambda f: f.t))
+            return True
+
+    def wake_mapping(self) -> None:
+        with self.frames_ready:
+            self.frames_ready.notify_all()
+
+    def integrate_frames(self, now: float) -> None:
+        """Give the map every queued frame older than the modelled perception delay (none while faulted)."""
+        with self.frames_ready:
+            due = []
+            while self._frames and self._frames[0].t <= now - self.config.perception_delay_s + 1e-9:
+                due.append(self._frames.popleft())
+        if not due or self.fault_reason is not None:
+            return
+        with self.lock:
+            for frame in due:
+                self.latest_frames[frame.camera] = frame
+            state = self.state
+        t0 = time.perf_counter()
+        with self.using_map() as world_map:
+            world_map.integrate(Observation(state=state, frames=tuple(due), odometry=None))
+        with self.lock:
+            self.timings_ms["mapping"] = (time.perf_counter() - t0) * 1e3
+
+    def control(self, state: RobotState) -> None:
+        """Sequencer → references → HTMPC; the plan becomes active after the modelled actuation delay."""
+        t0 = time.perf_counter()
+        with self.step_lock:
+            with self.lock:
+                if self.run_state != RunState.RUNNING:
+                    return
+                sequencer, controller = self.sequencer, self.controller
+            with self.using_map() as world_map:
+                occupied = world_map.occupied_points()
+                t_edf = time.perf_counter()
+                edf = world_map.local_edf(state.q[:2])
+                edf_ms = (time.perf_counter() - t_edf) * 1e3
+            refs = sequencer.update(state, occupied, state.t)
+            plan, solve_ms = None, math.nan
+            if refs is not None:
+                t_solve = time.perf_counter()
+                plan = controller.solve(state, refs, edf)
+                solve_ms = (time.perf_counter() - t_solve) * 1e3
+                self.problems.observe_plan(plan, state.t, solve_ms)
+            with self.lock:
+                self.last_edf, self.view = edf, SequenceView.of(sequencer)
+                self.timings_ms["edf"] = edf_ms
+                if self.run_state != RunState.RUNNING:  # stopped, e-stopped or faulted during the step
+                    return
+                if plan is None:
+                    self.run_state = RunState.FAILED if sequencer.failed else RunState.FINISHED
+                    self.plan = None
+                    self._pending_plans.clear()
+                else:
+                    self.timings_ms["solve"] = solve_ms
+                    self._pending_plans.append((state.t + self.config.actuation_delay_s, plan))
+                    self.last_control_wall = time.time()
+                    self._last_control_t = state.t
+        if plan is None and sequencer.failed:
+            self.notify(sequencer.status_line())
+        with self.lock:
+            self.timings_ms["control"] = (time.perf_counter() - t0) * 1e3
+
+    def _activate_due(self, t: float) -> None:
+        while self._pending_plans and self._pending_plans[0][0] <= t + 1e-9:
+            self.plan = self._pending_plans.popleft()[1]
+
+    def command(self, t: float) -> np.ndarray:
+        """Send the velocity command at robot time t from the active plan (zero when none or not moving);
+        a non-finite command is a fault, and the braking plan's command goes out instead."""
+        with self.command_lock:
+            t = max(t, self._last_command_t)  # robot time of commands never runs backwards
+            self._last_command_t = t
+            qdot = self._command_at(t)
+            if not np.all(np.isfinite(qdot)):
+                self.fault("non-finite command from the plan")
+                qdot = self._command_at(t)
+                qdot = qdot if np.all(np.isfinite(qdot)) else np.zeros(NQ)
+            qdot = self.robot.limits.clip_velocity(qdot)
+            self.last_qdot = qdot
+            self.commanded = True
+            self.backend.command(qdot, t)
+        return qdot
+
+    def _command_at(self, t: float) -> np.ndarray:
+        with self.lock:
+            self._activate_due(t)
+            plan = self.plan if self.moving else None
+            age = t - self._last_control_t
+            late = self.run_state == RunState.RUNNING and plan is not None and age > self.max_plan_age_s
+        if late:
+            self.fault(f"control is late: no control step for {age:.1f} s")
+            with self.lock:
+                plan = self.plan
+        return plan.velocity_at(t) if plan is not None else np.zeros(NQ)
+
+    def measure(self, qdot: np.ndarray) -> None:
+        """One row of the run log (at the control rate), with the robot–box distance in simulation."""
+        distance = self.world.robot_box_distance()[0] if self.world is not None else math.nan
+        with self.lock:
+            self.min_distance_m = distance
+            row = (self.state, self.plan, self.run_state, self.view.index, dict(self.timings_ms))
+        collisions = len(self.world.collisions) if self.world is not None else 0
+        state, plan, run_state, index, timings = row
+        self.log.record(state, plan, distance, collisions, run_state, index, qdot, timings)
+
+    # --- lockstep ------------------------------------------------------------------------------------
+
+    def tick(self, dt_s: float, control: bool, after_control: Callable[[], None] | None = None) -> np.ndarray:
+        """One command period: observe → map → control (when `control`) → command → measure.
+
+        Every stage is guarded: an exception faults the run and the remaining stages still run, so the
+        braking command goes out. `after_control` runs after the control stage (not guarded)."""
+        state = self.guarded("observe", self.observe, dt_s) or self.advance_clock(dt_s)
+        self.guarded("mapping", self.integrate_frames, state.t)
+        if control:
+            self.guarded("control", self.control, state)
+            if after_control is not None:
+                after_control()
+        qdot = self.guarded("command", self.command, state.t)
+        qdot = np.zeros(NQ) if qdot is None else qdot
+        if control:
+            self.guarded("measure", self.measure, qdot)
+        return qdot

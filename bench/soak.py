@@ -1,0 +1,250 @@
+"""Soak: a long closed loop and many run-control cycles, watching for collisions, crashes, faults and memory.
+
+1. Lockstep: 30 simulated minutes (3 with `--quick`) of the two pick-up stops on the default scene, over
+   and over, with the object map and CBF; every 10 s of sim time a box (not one the sequence works at) is
+   moved to a random free spot, never onto or into the robot, nor onto a subtask's goal.
+2. The bridge's HTTP API (real uvicorn on 127.0.0.1) against a live runtime on the embedded simulation:
+   100 cycles (20 with `--quick`) of Start, Stop or E-stop, Reset.
+
+    python -m bench.soak [--quick]
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import multiprocessing
+import secrets
+import tempfile
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import httpx
+import numpy as np
+from rich.progress import Progress
+
+import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported)
+from app.bridge.server import BridgeServer
+from app.runtime import Runtime, RuntimeConfig
+from app.snapshot import RunState
+from bench.report import bench_args, write_result
+from core.sim.world import SceneEditError
+from tasks.sequence_file import EXAMPLES_DIR, load_sequence
+
+log = logging.getLogger("bench.soak")
+
+SEQUENCE = EXAMPLES_DIR / "two_pickups.yaml"
+MOVE_EVERY_S = 10.0
+MOVABLE = ("box_b", "box_c", "box_d", "box_e")
+"""The default scene's boxes the sequence does not work at (box_a is picked from, the table placed on)."""
+AREA = ((-1.0, 6.5), (-3.0, 3.0))
+ROBOT_CLEAR_M = 1.6
+"""A moved box's centre stays this far from the robot's base (base sphere 0.55 m + half a box diagonal
+0.42 m + room to brake)."""
+GOAL_CLEAR_M = 1.2
+BOX_CLEAR_M = 0.9
+
+
+def rss_mb() -> float:
+    """Resident memory of this process (MB)."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024.0
+    return math.nan
+
+
+def growth_mb_per_min(samples: list[tuple[float, float]], warmup: float = 0.2) -> float:
+    """Slope of RSS over wall time (MB/min) after the first `warmup` fraction of the samples."""
+    rows = np.array(samples[int(len(samples) * warmup):])
+    if len(rows) < 3 or rows[-1, 0] - rows[0, 0] < 1.0:
+        return math.nan
+    return float(np.polyfit(rows[:, 0] / 60.0, rows[:, 1], 1)[0])
+
+
+@dataclass
+class Tally:
+    collisions: int = 0
+    crashes: int = 0
+    faults: list[str] = field(default_factory=list)
+    laps: int = 0
+    subtasks_done: int = 0
+    subtasks_failed: int = 0
+    box_moves: int = 0
+    failures: list[str] = field(default_factory=list)
+    rss: list[tuple[float, float]] = field(default_factory=list)
+
+
+class BoxMover:
+    """The `on_control` callback: every `MOVE_EVERY_S` of sim time, one movable box to a random free spot."""
+
+    def __init__(self, tally: Tally, goals: np.ndarray, seed: int = 0) -> None:
+        self.tally, self.goals = tally, goals
+        self.rng = np.random.default_rng(seed)
+        self.next_t = MOVE_EVERY_S
+
+    def __call__(self, rt: Runtime) -> None:
+        if rt.time + 1e-9 < self.next_t:
+            return
+        self.next_t = rt.time + MOVE_EVERY_S
+        self.tally.rss.append((time.monotonic(), rss_mb()))
+        boxes = {b.id: b for b in rt.world.boxes()}
+        box_id = str(self.rng.choice([b for b in MOVABLE if b in boxes]))
+        others = np.array([b.position[:2] for b in boxes.values() if b.id != box_id])
+        for _ in range(200):
+            xy = np.array([self.rng.uniform(*AREA[0]), self.rng.uniform(*AREA[1])])
+            if (np.hypot(*(xy - rt.state.q[:2])) < ROBOT_CLEAR_M
+                    or np.min(np.linalg.norm(self.goals - xy, axis=1)) < GOAL_CLEAR_M
+                    or (len(others) and np.min(np.linalg.norm(others - xy, axis=1)) < BOX_CLEAR_M)):
+                continue
+            try:
+                rt.move_box(box_id, (float(xy[0]), float(xy[1]), boxes[box_id].size[2] / 2),
+                            float(self.rng.uniform(-math.pi, math.pi)))
+            except SceneEditError:
+                continue
+            self.tally.box_moves += 1
+            return
+
+
+def _goals(rt: Runtime) -> np.ndarray:
+    """Base goals and the points under EE goals of the sequence (x, y)."""
+    pts = []
+    for sub in rt.sequence.subtasks:
+        goal = sub.goal()
+        pts.append(goal.position[:2] if hasattr(goal, "position") else (goal.x, goal.y))
+    return np.array(pts, dtype=float)
+
+
+def _end_lap(rt: Runtime, tally: Tally) -> None:
+    progress = rt.sequencer.progress
+    tally.subtasks_done += sum(p.outcome.value == "done" for p in progress)
+    failed = [p for p in progress if p.outcome.value == "failed"]
+    tally.subtasks_failed += len(failed)
+    tally.failures += [f"t = {rt.time:.0f} s: {p.name}: {p.message}" for p in failed]
+    tally.laps += 1
+
+
+def lockstep_soak(sim_minutes: float, seed: int = 0) -> Tally:
+    """The looping sequence with boxes moving, in simulated time; collisions, crashes, faults, memory."""
+    tally = Tally()
+    rt = Runtime(RuntimeConfig(map_kind="object", constraint="cbf"), sequence=load_sequence(SEQUENCE))
+    mover = BoxMover(tally, _goals(rt), seed)
+    total = sim_minutes * 60.0
+    done = 0.0
+    with Progress() as progress:
+        task = progress.add_task("lockstep soak", total=total)
+        while done < total - 1e-6:
+            t_start, crashed = rt.time, False
+            try:
+                rt.run_lockstep(total - done, on_control=mover)
+            except Exception:
+                log.exception("run_lockstep crashed")
+                tally.crashes, crashed = tally.crashes + 1, True
+            done += max(rt.time - t_start, 0.01)
+            progress.update(task, completed=done)
+            if rt.fault is not None or crashed:
+                tally.faults += [rt.fault] if rt.fault else []
+                tally.collisions += len(rt.world.collisions)
+                rt.reset()
+                mover.next_t = rt.time + MOVE_EVERY_S
+            elif rt.run_state in (RunState.FINISHED, RunState.FAILED):
+                _end_lap(rt, tally)
+    tally.collisions += len(rt.world.collisions)
+    if rt.run_state == RunState.RUNNING:  # the lap under way when time ran out
+        _end_lap(rt, tally)
+        tally.laps -= 1
+    tally.rss.append((time.monotonic(), rss_mb()))
+    return tally
+
+
+@dataclass
+class ApiTally:
+    cycles: int = 0
+    failures: list[str] = field(default_factory=list)
+    faults: list[str] = field(default_factory=list)
+    rss: list[tuple[float, float]] = field(default_factory=list)
+    threads_before: int = 0
+    threads_after: int = 0
+    processes_after: int = 0
+
+
+def _expect(response: httpx.Response, run_state: str, tally: ApiTally, what: str) -> None:
+    if response.status_code != 200:
+        tally.failures.append(f"{what}: HTTP {response.status_code} {response.text[:200]}")
+    elif response.json().get("run_state") != run_state:
+        tally.failures.append(f"{what}: run_state {response.json().get('run_state')!r}, expected {run_state!r}")
+
+
+def api_cycles(n: int, pause_s: float = 0.3) -> ApiTally:
+    """`n` cycles of Start, Stop (even) or E-stop (odd), Reset through the bridge's operator API."""
+    tally = ApiTally()
+    with tempfile.TemporaryDirectory() as tmp:
+        bridge = BridgeServer(port=0, token=secrets.token_urlsafe(24), token_file=Path(tmp) / "token")
+        bridge.start()
+        runtime = Runtime(RuntimeConfig())
+        bridge.attach(runtime)
+        runtime.start_live()
+        tally.threads_before = threading.active_count()
+        headers = {"Authorization": f"Bearer {bridge.token}"}
+        try:
+            with httpx.Client(base_url=bridge.url, headers=headers, timeout=60.0) as api, Progress() as progress:
+                task = progress.add_task("API cycles", total=n)
+                for i in range(n):
+                    _expect(api.post("/api/run/start"), "running", tally, f"cycle {i} start")
+                    time.sleep(pause_s)
+                    halt = "stop" if i % 2 == 0 else "emergency-stop"
+                    _expect(api.post(f"/api/run/{halt}"), "idle" if halt == "stop" else "emergency_stop", tally,
+                            f"cycle {i} {halt}")
+                    fault = api.get("/api/state").json().get("fault")
+                    if fault:
+                        tally.faults.append(fault)
+                    _expect(api.post("/api/run/reset"), "idle", tally, f"cycle {i} reset")
+                    tally.cycles += 1
+                    tally.rss.append((time.monotonic(), rss_mb()))
+                    progress.update(task, completed=i + 1)
+            tally.threads_after = threading.active_count()
+            tally.processes_after = len(multiprocessing.active_children())
+        finally:
+            runtime.shutdown()
+            bridge.stop()
+    return tally
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = bench_args(__doc__.splitlines()[0], argv)
+    sim_minutes, n_cycles = (3.0, 20) if args.quick else (30.0, 100)
+    wall0, cpu0 = time.monotonic(), time.process_time()
+    soak = lockstep_soak(sim_minutes)
+    wall_lockstep = time.monotonic() - wall0
+    cycles = api_cycles(n_cycles)
+    figures = {
+        "collisions": float(soak.collisions),
+        "crashes": float(soak.crashes),
+        "faults": float(len(soak.faults) + len(cycles.faults)),
+        "rss_growth_mb_per_min": growth_mb_per_min(soak.rss),
+        "subtasks_failed": float(soak.subtasks_failed),
+        "subtasks_done": float(soak.subtasks_done),
+        "laps": float(soak.laps),
+        "box_moves": float(soak.box_moves),
+        "sim_minutes": sim_minutes,
+        "lockstep_rtf": sim_minutes * 60.0 / wall_lockstep,
+        "rss_end_mb": soak.rss[-1][1],
+        "api_cycles": float(cycles.cycles),
+        "api_failures": float(len(cycles.failures)),
+        "api_rss_growth_mb_per_min": growth_mb_per_min(cycles.rss),
+        "api_threads_leaked": float(cycles.threads_after - cycles.threads_before),
+        "api_child_processes": float(cycles.processes_after),
+        "cpu_s": time.process_time() - cpu0,
+    }
+    units = {"rss_growth_mb_per_min": "MB/min", "api_rss_growth_mb_per_min": "MB/min", "sim_minutes": "min",
+             "lockstep_rtf": "x", "rss_end_mb": "MB", "cpu_s": "s"}
+    targets = {"collisions": "== 0", "crashes": "== 0", "faults": "== 0", "rss_growth_mb_per_min": "<= 1",
+               "subtasks_failed": "== 0", "api_failures": "== 0", "api_rss_growth_mb_per_min": "<= 1"}
+    write_result("soak", figures, units, targets, quick=args.quick,
+                 extra={"faults": soak.faults + cycles.faults, "subtask_failures": soak.failures[:50],
+                        "api_failures": cycles.failures[:20]})
+
+
+if __name__ == "__main__":
+    main()
