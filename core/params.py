@@ -86,7 +86,10 @@ class HTMPCParams:
     constraint: str = "cbf"
     """'cbf' (eq. 10) or 'edf' (h ≥ 0 baseline)."""
     lex_tolerance: float = 0.01
-    """Added to the stored |e_i*| in (7c)."""
+    """Added to the stored |e_i*| in (7c), nodes 2..N (m or rad)."""
+    lex_tolerance_first_node: float = 1e-4
+    """The same at node 1, the part of the plan the robot executes: there a tolerance is spent again at every
+    control step and level 1 settles tol / (1 − ρ) off its optimum (`level_problem.lex_tolerances`)."""
     slack_linear: float = 50.0
     slack_quadratic: float = 1.0
     slack_groups: str = "body"

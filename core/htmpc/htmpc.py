@@ -2,7 +2,9 @@
 
 Each control step solves, for the active subtask's task order [T_1 … T_L], a sequence of single-task
 MPCs: level l minimises J_l + J_aux subject to the dynamics, bounds, the collision rows from the EDF
-and |e_i| ≤ |e_i*| + tol for each earlier level i (7c). The nonlinear problem is handled by
+and |e_i| ≤ |e_i*| + tol for each earlier level i (7c), with a tolerance only where the plan is re-planned
+(not at node 1, which the robot executes) and the step checked on the exact errors (`_keep_priority`):
+so the order holds in closed loop, not only in one solve. The nonlinear problem is handled by
 Gauss-Newton SQP in real-time-iteration form: one structured QP (HPIPM) per level per step, around the
 previous solution shifted to now; right after a task switch, several iterations (until the plan stops
 moving, `sqp_step_tol`), each damped (`sqp_damping`) and bounded by an adaptive trust region.
@@ -28,6 +30,8 @@ from core.htmpc.level_problem import (
     LexBound,
     add_lex_rows,
     base_arrays,
+    lex_limits,
+    lex_tolerances,
     linearised_errors,
     task_cost,
     variable_bounds,
@@ -163,6 +167,7 @@ class HTMPC:
         lim = self.robot.limits
         levels = [order] if p.hierarchy == "weighted" else [[name] for name in order]
         bounds: list[LexBound] = []
+        tol = lex_tolerances(p)
         best, level_ms, level_errors, solutions = None, [], [], []
         failed, message = None, ""
         guess = None
@@ -172,7 +177,7 @@ class HTMPC:
             arrays = base_arrays(qp, p, it.q, rows, damping)
             for name in level:
                 task_cost(arrays, qp, lins[name], it.q, p)
-            add_lex_rows(arrays, qp, bounds, it.q, p.lex_tolerance)
+            add_lex_rows(arrays, qp, bounds, it.q, tol)
             lbx, ubx = variable_bounds(qp.layout, x0, lim.q_min, lim.q_max, lim.v_max, lim.a_max, p.dt_s,
                                        it.q, self._trust_now())
             if guess is None:  # level 1 starts from the linearisation point, level l from level l−1's optimum
@@ -183,10 +188,12 @@ class HTMPC:
                 failed, message = i, f"level {i + 1} QP failed ({sol.status})"
                 log.warning(message)
                 break
-            q, v, a = qp.layout.states(sol.z)
-            best = (q, v, a, qp.layout.slacks(sol.z))
+            z = sol.z if not bounds else self._keep_priority(qp.layout, guess, sol.z, order[:len(bounds)], refs,
+                                                             tol)
+            q, v, a = qp.layout.states(z)
+            best = (q, v, a, qp.layout.slacks(z))
             solutions.append((q, v, a))
-            guess = sol.z
+            guess = z
             for name in level:
                 e = linearised_errors(lins[name], q, it.q)
                 level_errors.append(e)
@@ -197,6 +204,35 @@ class HTMPC:
         min_h = float(rows.h[0].min()) if rows is not None else float("nan")
         return StepResult(q, v, a, s, level_ms, level_errors, failed, message, kin, lins, it.q, min_h,
                           level_solutions=solutions)
+
+    def _true_errors(self, q: np.ndarray, names: list[str], refs: References) -> np.ndarray:
+        """The exact (nonlinear) errors of tasks `names` at nodes 1..N of q, side by side (N, Σm)."""
+        kin = self.kinematics(q) if "ee" in names else None
+        errs = [self.tasks[n].compute_error(q, refs.base) if n == "base" else self.tasks[n].compute_error(kin, refs.ee)
+                for n in names]
+        return np.concatenate(errs, axis=1)[1:]
+
+    def _keep_priority(self, layout: QPLayout, z_prev: np.ndarray, z_new: np.ndarray, earlier: list[str],
+                       refs: References, tol: np.ndarray) -> np.ndarray:
+        """(7c) with the exact errors: the longest step from the previous level's solution toward this
+        level's (z_prev + α (z_new − z_prev), α halved from 1 to 1/8, else 0) that keeps every earlier task's
+        exact error within `lex_limits` of its exact error at the previous level's solution.
+
+        The QP bounds the Gauss-Newton model of the earlier errors; a lower level exploits the model's error
+        (at a stretched arm, 0.5 rad of arm motion that the model says keeps the EE in place moved it 0.7 m),
+        and in closed loop level 1 then settles far from its optimum. Every α is feasible for this level's QP:
+        both ends are, and its constraints are linear."""
+        if all(n == "base" for n in earlier):
+            return z_new  # the base errors are linear in q: the QP's bound is exact
+        e_ref = self._true_errors(layout.states(z_prev)[0], earlier, refs)
+        lo, hi = lex_limits(e_ref, tol)
+        step = z_new - z_prev
+        for alpha in (1.0, 0.5, 0.25, 0.125):
+            z = z_prev + alpha * step
+            e = self._true_errors(layout.states(z)[0], earlier, refs)
+            if np.all(e >= lo - 1e-9) and np.all(e <= hi + 1e-9):
+                return z
+        return z_prev
 
     # --- the control step --------------------------------------------------------------------------
 

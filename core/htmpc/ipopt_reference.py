@@ -19,6 +19,7 @@ import numpy as np
 from core.htmpc.collision_constraint import DistanceField
 from core.htmpc.horizon_kinematics import HorizonKinematicsEvaluator
 from core.htmpc.htmpc import slack_groups
+from core.htmpc.level_problem import lex_limits, lex_tolerances
 from core.params import HTMPCParams
 from core.robot.model import RobotModel
 from core.robot.symbolic_fk import SymbolicKinematics
@@ -98,7 +99,7 @@ class IpoptReference:
         dbar = ca.SX.sym("dbar", M, N - 1)
         grad = ca.SX.sym("grad", 3 * M, N - 1)
         Pbar = ca.SX.sym("Pbar", 3 * M, N - 1)
-        estar = {name: ca.SX.sym(f"estar_{name}", 6, N) for name in levels[:level]}
+        estar = {name: (ca.SX.sym(f"elo_{name}", 6, N), ca.SX.sym(f"ehi_{name}", 6, N)) for name in levels[:level]}
         P_fn = ca.Function("P", [self.sym.q], [ca.vec(self.sym.sphere_centres())])
         dt = p.dt_s
         W = {"base": np.array(p.Q_base), "ee": np.array(p.Q_ee)}
@@ -127,10 +128,11 @@ class IpoptReference:
             for name in levels[:level]:
                 e = err(name, k)
                 m = e.shape[0]
-                g.append(e - estar[name][:m, k - 1])
+                lo, hi = estar[name]
+                g.append(e - hi[:m, k - 1])
                 lbg.append(-np.inf * np.ones(m))
                 ubg.append(np.zeros(m))
-                g.append(e + estar[name][:m, k - 1])
+                g.append(e - lo[:m, k - 1])
                 lbg.append(np.zeros(m))
                 ubg.append(np.inf * np.ones(m))
         for k in range(N):
@@ -160,7 +162,7 @@ class IpoptReference:
                     ubg.append(np.inf * np.ones(1))
         z = ca.vertcat(ca.vec(X), ca.vec(U), ca.vec(S))
         par = ca.vertcat(x0, *[ca.vertcat(ca.vec(a), ca.vec(b)) for a, b in refs.values()], ca.vec(dbar),
-                         ca.vec(grad), ca.vec(Pbar), *[ca.vec(e) for e in estar.values()])
+                         ca.vec(grad), ca.vec(Pbar), *[ca.vertcat(ca.vec(lo), ca.vec(hi)) for lo, hi in estar.values()])
         g.insert(0, X[:, 0] - x0)
         lbg.insert(0, np.zeros(18))
         ubg.insert(0, np.zeros(18))
@@ -218,7 +220,7 @@ class IpoptReference:
         x0 = np.concatenate([state.q, self.robot.limits.clip_velocity(state.v)])
         z0 = np.concatenate([np.column_stack([q_guess, v_guess]).ravel(), a_guess.ravel(), np.zeros(ns * (N - 1))])
         lbz, ubz = self._bounds(x0, ns)
-        estars: list[np.ndarray] = []
+        estars: list[tuple[np.ndarray, np.ndarray]] = []
         costs, times, evals, objectives, compared_obj, violations = [], [], [], [], [], []
         tasks, compared_task = [], []
         levels = 1 if p.hierarchy == "weighted" else len(order)
@@ -230,7 +232,7 @@ class IpoptReference:
                 self._cache[key] = self._build(order, has_rot, level, edf is not None)
             solver, errs, lbg, ubg, cost_fn, rows_fn = self._cache[key]
             par = np.concatenate([x0, *ref_par, dbar.ravel(), grad.ravel(), Pbar.ravel(),
-                                  *[e.ravel(order="F") for e in estars]])
+                                  *[np.concatenate([lo.ravel(order="F"), hi.ravel(order="F")]) for lo, hi in estars]])
             t0 = time.perf_counter()
             out = solver(x0=z, p=par, lbx=lbz, ubx=ubz, lbg=lbg, ubg=ubg)
             times.append((time.perf_counter() - t0) * 1e3)
@@ -250,7 +252,8 @@ class IpoptReference:
                 compared_task.append(float(task))
                 violations.append(violation)
             e_all = np.asarray(errs(z, par)).ravel().reshape(len(order), N, 6)
-            estars.append((np.abs(e_all[level]) + p.lex_tolerance).T)
+            lo, hi = lex_limits(e_all[level], lex_tolerances(p))
+            estars.append((lo.T, hi.T))
         n_x = 18 * (N + 1)
         X = z[:n_x].reshape(N + 1, 18)
         U = z[n_x:n_x + 9 * N].reshape(N, 9)
