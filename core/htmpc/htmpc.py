@@ -265,8 +265,9 @@ class HTMPC:
                 it = _Iterate(state.t, step.q, step.v, step.a)
                 if converged:
                     break
-        except (ValueError, FloatingPointError, np.linalg.LinAlgError) as err:
-            return self._fallback(state, n, f"controller error: {err}")
+        except Exception as err:  # any fault inside the solve brakes the robot; a dead control loop does not
+            log.exception("HTMPC step raised")
+            return self._fallback(state, n, f"controller error: {type(err).__name__}: {err}")
         elapsed = (time.perf_counter() - t0) * 1e3
         if step is None or step.failed_level == 0:
             return self._fallback(state, n, step.message if step else "no iteration")
