@@ -199,13 +199,23 @@ class StructuredQP:
                 "uba": uba, "lbx": lbx, "ubx": ubx}
         if guess is not None:
             args["x0"] = guess
+        z, ok, status, iters = self._call(args)
+        if not ok and guess is not None:
+            # A primal guess on the boundary of a narrow feasible set (the previous level's optimum against its
+            # (7c) rows, a warm start at a velocity limit) can stall the interior point (status 1: iteration
+            # limit, 2: minimum step); every stalled QP of the closed-loop runs solved from the cold start.
+            del args["x0"]
+            z, ok, cold, more = self._call(args)
+            status, iters = f"{status}, cold start {cold}", iters + more
+        return QPSolution(z, ok, status, iters, (time.perf_counter() - t0) * 1e3)
+
+    def _call(self, args: dict) -> tuple[np.ndarray, bool, str, int]:
+        """One HPIPM call: (z, success, HPIPM's status, iterations)."""
         try:
             out = self.solver(**args)
         except RuntimeError as err:  # casadi raises on malformed input
-            return QPSolution(np.full(self.layout.nv, np.nan), False, f"solver error: {err}", 0,
-                              (time.perf_counter() - t0) * 1e3)
+            return np.full(self.layout.nv, np.nan), False, f"solver error: {err}", 0
         stats = self.solver.stats()
         z = out["x"].full().ravel()
         ok = bool(stats.get("success", False)) and bool(np.all(np.isfinite(z)))
-        return QPSolution(z, ok, str(stats.get("return_status", "")), int(stats.get("iter_count", -1)),
-                          (time.perf_counter() - t0) * 1e3)
+        return z, ok, str(stats.get("return_status", "")), int(stats.get("iter_count", -1))
