@@ -19,7 +19,13 @@ class RobotParams:
     arm_mount_xyz_m: tuple[float, float, float] = (0.27, 0.0, 0.653)
     """Position of the UR10 `base_link` in the base frame (Ridgeback top plate plus riser)."""
     base_size_m: tuple[float, float, float] = (0.96, 0.79, 0.32)
-    """Ridgeback footprint (length, width) and body height."""
+    """Ridgeback footprint (length, width) and body height (the top of its body above the floor)."""
+    base_clearance_m: float = 0.08
+    """Height of the body's underside above the floor (wheels below it)."""
+    rack_size_m: tuple[float, float, float] = (0.4, 0.5, 0.6)
+    """The rack on the base's top plate behind the arm (length, width, height)."""
+    rack_x_m: float = -0.25
+    """Position of the rack's centre along the base's x axis."""
     base_speed_mps: float = 1.0
     base_yaw_rate_radps: float = 0.75
     arm_speed_radps: tuple[float, ...] = (2.16, 2.16, 3.15, 3.2, 3.2, 3.2)
@@ -90,6 +96,10 @@ class HTMPCParams:
     lex_tolerance_first_node: float = 1e-4
     """The same at node 1, the part of the plan the robot executes: there a tolerance is spent again at every
     control step and level 1 settles tol / (1 − ρ) off its optimum (`level_problem.lex_tolerances`)."""
+    box_iterations: int = 2
+    """Alternating projections per solve that find the base boxes' points closest to the obstacles
+    (`box_barrier.py`). Against a dense sampling of the boxes over random scenes: 2 leave the distance
+    at most 0.6 mm too large in 90 % of cases (1.9 cm at worst), 3 at most 0.4 mm (1.3 cm), at ×1.5 the work."""
     slack_linear: float = 50.0
     slack_quadratic: float = 1.0
     slack_groups: str = "body"

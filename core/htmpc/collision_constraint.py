@@ -7,16 +7,21 @@ gradient at the predicted sphere centres: h ≈ h̄ + g^T (q − q̄), g = J_Pj(
   dh/dt ≈ g^T v + c^T (q − q̄), c = ∂(J_P(q) v̄)/∂q^T ∇EDF (the sphere velocity turns with the arm)
   →  g^T v + (gamma g + c)^T q + s ≥ (gamma g + c)^T q̄ − gamma h̄
 The slack s ≥ 0 (penalised in the cost) keeps the problem feasible when a box appears suddenly.
+The base's boxes add rows of the same form at their points closest to the obstacles, radius 0
+(`box_barrier.py`), after the spheres' rows.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from core.htmpc.horizon_kinematics import HorizonKinematics
+
+if TYPE_CHECKING:
+    from core.htmpc.box_barrier import BoxBarrier
 
 
 class DistanceField(Protocol):
@@ -41,10 +46,13 @@ class CollisionRows:
 class CollisionConstraint:
     """Builds the linearised EDF or CBF rows (METHOD.md, eq. 10)."""
 
-    def __init__(self, radii: np.ndarray, delta_safe_m: float, gamma: float, kind: str = "cbf") -> None:
+    def __init__(self, radii: np.ndarray, delta_safe_m: float, gamma: float, kind: str = "cbf",
+                 boxes: BoxBarrier | None = None) -> None:
         if kind not in ("cbf", "edf"):
             raise ValueError(f"constraint kind must be 'cbf' or 'edf', got {kind!r}")
-        self.radii = np.asarray(radii, float)
+        self.boxes = boxes
+        self.radii = np.concatenate([np.asarray(radii, float), np.zeros(boxes.n_rows if boxes else 0)])
+        """Per row: the spheres' radii, then 0 for the box rows."""
         self.delta_safe_m = delta_safe_m
         self.gamma = gamma
         self.kind = kind
@@ -53,15 +61,27 @@ class CollisionConstraint:
         """h = EDF(P) − r − delta_safe for centres (..., M, 3)."""
         return edf.distance(centres) - self.radii - self.delta_safe_m
 
-    def rows(self, q_bar: np.ndarray, kin: HorizonKinematics, edf: DistanceField) -> CollisionRows:
-        """Rows for nodes 1..K−1 of the iterate q̄ (K, 9)."""
+    @property
+    def n_rows(self) -> int:
+        """Rows per node: one per sphere and per box side."""
+        return len(self.radii)
+
+    def rows(self, q_bar: np.ndarray, kin: HorizonKinematics, edf: DistanceField,
+             v_bar: np.ndarray | None = None) -> CollisionRows:
+        """Rows for nodes 1..K−1 of the iterate q̄ (K, 9) with velocities v̄ (zero if None)."""
         P, JP = kin.P[1:], kin.JP[1:]
+        dvel = kin.dvel_dq[1:] if kin.dvel_dq is not None else np.zeros_like(JP)
+        if self.boxes is not None:
+            v = np.zeros_like(q_bar) if v_bar is None else v_bar
+            pts = self.boxes.points(q_bar[1:], v[1:], edf)
+            P, JP = np.concatenate([P, pts.P], axis=1), np.concatenate([JP, pts.JP], axis=1)
+            dvel = np.concatenate([dvel, pts.dvel_dq], axis=1)
         h = self.barrier(edf, P)
         grad = edf.gradient(P)
         g = np.einsum("kmc,kmcj->kmj", grad, JP)
         gq = np.einsum("kmj,kj->km", g, q_bar[1:])
         if self.kind == "edf":
             return CollisionRows(a_q=g, a_v=np.zeros_like(g), lb=gq - h, h=h)
-        c = np.einsum("kmc,kmcj->kmj", grad, kin.dvel_dq[1:]) if kin.dvel_dq is not None else np.zeros_like(g)
+        c = np.einsum("kmc,kmcj->kmj", grad, dvel)
         a_q = self.gamma * g + c
         return CollisionRows(a_q=a_q, a_v=g, lb=np.einsum("kmj,kj->km", a_q, q_bar[1:]) - self.gamma * h, h=h)

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from core.htmpc.box_barrier import BoxBarrier
 from core.htmpc.collision_constraint import CollisionConstraint, CollisionRows, DistanceField
 from core.htmpc.horizon_kinematics import HorizonKinematics, HorizonKinematicsEvaluator
 from core.htmpc.level_problem import (
@@ -98,9 +99,11 @@ class HTMPC:
             raise ValueError(f"hierarchy must be 'lexicographic' or 'weighted', got {p.hierarchy!r}")
         self.tasks = {"base": BaseTask(p.Q_base), "ee": EETask(p.Q_ee)}
         self.kinematics = HorizonKinematicsEvaluator(robot, p.N + 1)
-        self.collision = CollisionConstraint(robot.sphere_radii, p.delta_safe_m, p.gamma, p.constraint)
+        boxes = BoxBarrier(robot.boxes, p.box_iterations)
+        self.collision = CollisionConstraint(robot.sphere_radii, p.delta_safe_m, p.gamma, p.constraint, boxes)
+        self.row_names = collision_row_names(robot, boxes)
         self._qps: dict[int, StructuredQP] = {}
-        self.slack_group = slack_groups(robot, p.slack_groups)
+        self.slack_group = slack_groups(self.row_names, p.slack_groups)
         for n_lex in PREBUILT_LEX_ROWS:  # 15–45 ms each: not inside the first control step
             self._qp(n_lex)
         self.trust = np.array([p.trust_region_m] * 2 + [p.trust_region_rad] * 7)
@@ -125,7 +128,7 @@ class HTMPC:
 
     def _qp(self, n_lex: int) -> StructuredQP:
         if n_lex not in self._qps:
-            layout = QPLayout(self.params.N, len(self.robot.spheres), n_lex, self.slack_group)
+            layout = QPLayout(self.params.N, self.collision.n_rows, n_lex, self.slack_group)
             self._qps[n_lex] = StructuredQP(layout, self.params.dt_s)
         return self._qps[n_lex]
 
@@ -163,7 +166,7 @@ class HTMPC:
         p = self.params
         kin = self.kinematics(it.q, it.v)
         lins = self._linearise(order, refs, it.q, kin)
-        rows: CollisionRows | None = self.collision.rows(it.q, kin, edf) if edf is not None else None
+        rows: CollisionRows | None = self.collision.rows(it.q, kin, edf, it.v) if edf is not None else None
         lim = self.robot.limits
         levels = [order] if p.hierarchy == "weighted" else [[name] for name in order]
         bounds: list[LexBound] = []
@@ -354,13 +357,21 @@ class HTMPC:
                     extras={"max_slack": max_slack, "levels": float(len(step.level_ms))})
 
 
-def slack_groups(robot: RobotModel, kind: str) -> np.ndarray:
-    """Slack index per sphere: 'sphere' (one each), 'body' (base/rack vs arm) or 'node' (one per node)."""
-    names = [s.name for s in robot.spheres]
+def collision_row_names(robot: RobotModel, boxes: BoxBarrier) -> list[str]:
+    """Names of a node's collision rows, in order: the spheres, then the base boxes' sides."""
+    return [s.name for s in robot.spheres] + boxes.names
+
+
+BASE_ROWS = ("mount", "base_body", "base_rack")
+"""Rows of the parts fixed to the base (prefixes of `collision_row_names`)."""
+
+
+def slack_groups(names: list[str], kind: str) -> np.ndarray:
+    """Slack index per collision row: 'sphere' (one each), 'body' (base vs arm) or 'node' (one per node)."""
     if kind == "sphere":
         return np.arange(len(names))
     if kind == "body":
-        return np.array([0 if n in ("base", "rack_low", "rack_high") else 1 for n in names])
+        return np.array([0 if n.startswith(BASE_ROWS) else 1 for n in names])
     if kind == "node":
         return np.zeros(len(names), int)
     raise ValueError(f"slack_groups must be 'sphere', 'body' or 'node', got {kind!r}")
