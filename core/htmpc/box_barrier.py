@@ -72,7 +72,8 @@ class BoxBarrier:
             p = origin + local @ turn
             d, g = distance_and_gradient(edf, p)
             norm = np.linalg.norm(g, axis=-1)
-            step = np.where(norm > FLAT_GRADIENT, d / np.maximum(norm, 1e-9), 0.0)[..., None] * g
+            ok = (norm > FLAT_GRADIENT) & np.isfinite(d)  # a broken map moves no point (its rows fail the QP)
+            step = np.where(ok, d / np.where(ok, norm, 1.0), 0.0)[..., None] * np.where(ok[..., None], g, 0.0)
             local = np.clip((p - step - origin) @ np.swapaxes(turn, 1, 2), self.lo, self.hi)
         d = edf.distance(origin + local @ turn)
         best = np.take_along_axis(self.groups[None], np.argmin(d[:, self.groups], axis=2)[..., None], axis=2)[..., 0]

@@ -43,6 +43,28 @@ class CollisionRows:
     """h̄ per node and sphere (m), for diagnostics."""
 
 
+@dataclass(frozen=True)
+class StepRows:
+    """The collision rows at τ into the first interval (the next control instant), in that interval's
+    acceleration: a_a · a_0 + s_0 ≥ lb, from q(τ) = q_0 + τ v_0 + ½ τ² a_0 and v(τ) = v_0 + τ a_0.
+
+    The rows at the nodes alone let a plan brake gently inside the first 0.3 s interval and still meet them
+    (at node 1 the plan may already move away again, and a CBF row admits h < 0 while h grows); the robot
+    executes only that interval's first control period and re-plans, so braking by such plans stops late:
+    3 cm past the planned stop from 0.46 m/s. These rows hold the executed motion itself to the constraint."""
+
+    a_a: np.ndarray
+    lb: np.ndarray
+    h: np.ndarray
+
+
+def step_rows(rows: CollisionRows, q0: np.ndarray, v0: np.ndarray, tau: float) -> StepRows:
+    """`StepRows` from the collision rows of one node at τ (the first entry of `rows`) and the state (q0, v0)."""
+    a_q, a_v = rows.a_q[0], rows.a_v[0]
+    return StepRows(a_a=0.5 * tau**2 * a_q + tau * a_v, lb=rows.lb[0] - a_q @ (q0 + tau * v0) - a_v @ v0,
+                    h=rows.h[0])
+
+
 class CollisionConstraint:
     """Builds the linearised EDF or CBF rows (METHOD.md, eq. 10)."""
 

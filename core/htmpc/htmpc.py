@@ -25,7 +25,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from core.htmpc.box_barrier import BoxBarrier
-from core.htmpc.collision_constraint import CollisionConstraint, CollisionRows, DistanceField
+from core.htmpc.collision_constraint import (
+    CollisionConstraint,
+    CollisionRows,
+    DistanceField,
+    StepRows,
+    step_rows,
+)
 from core.htmpc.horizon_kinematics import HorizonKinematics, HorizonKinematicsEvaluator
 from core.htmpc.level_problem import (
     LexBound,
@@ -37,7 +43,7 @@ from core.htmpc.level_problem import (
     task_cost,
     variable_bounds,
 )
-from core.htmpc.ocp_qp import QPLayout, StructuredQP
+from core.htmpc.ocp_qp import NQ, QPLayout, StructuredQP
 from core.htmpc.safety import brake_along, braking_plan, plan_is_safe
 from core.htmpc.tasks import BaseTask, EETask, Linearisation
 from core.params import HTMPCParams
@@ -63,6 +69,28 @@ class _Iterate:
     q: np.ndarray
     v: np.ndarray
     a: np.ndarray
+
+
+@dataclass
+class SolveCounts:
+    """What went wrong how often since the controller was made (experiments report these)."""
+
+    solves: int = 0
+    level1_qp_failures: int = 0
+    """Failed level-1 QPs: the step brakes (safety.py)."""
+    lower_level_qp_failures: int = 0
+    """Failed QPs of levels ≥ 2: the step hands out the level above's plan."""
+    qp_cold_restarts: int = 0
+    """Warm-started QPs that stalled and solved from the cold start."""
+    exceptions: int = 0
+    timeouts: int = 0
+    other_fallbacks: int = 0
+    """Non-finite states, solutions outside the limits."""
+
+    @property
+    def qp_failures(self) -> int:
+        """QPs that failed even from the cold start, at any level."""
+        return self.level1_qp_failures + self.lower_level_qp_failures
 
 
 @dataclass
@@ -99,6 +127,8 @@ class HTMPC:
             raise ValueError(f"hierarchy must be 'lexicographic' or 'weighted', got {p.hierarchy!r}")
         self.tasks = {"base": BaseTask(p.Q_base), "ee": EETask(p.Q_ee)}
         self.kinematics = HorizonKinematicsEvaluator(robot, p.N + 1)
+        self._step_kinematics = HorizonKinematicsEvaluator(robot, 2)
+        """FK at the next control instant (`StepRows`), as a two-node horizon whose node 1 is that instant."""
         boxes = BoxBarrier(robot.boxes, p.box_iterations)
         self.collision = CollisionConstraint(robot.sphere_radii, p.delta_safe_m, p.gamma, p.constraint, boxes)
         self.row_names = collision_row_names(robot, boxes)
@@ -113,6 +143,7 @@ class HTMPC:
         self.last_step: StepResult | None = None
         self._last_plan: Plan | None = None
         """The plan handed out last: a fault brakes along it (safety.brake_along)."""
+        self.counts = SolveCounts()
         self.enforce_timeout = True
         """Live runs discard slow solves (`solve_timeout_ms`); lockstep runs turn this off to stay
         deterministic (simulated time does not advance while the solver works)."""
@@ -167,6 +198,7 @@ class HTMPC:
         kin = self.kinematics(it.q, it.v)
         lins = self._linearise(order, refs, it.q, kin)
         rows: CollisionRows | None = self.collision.rows(it.q, kin, edf, it.v) if edf is not None else None
+        step = self._step_rows(x0, it, edf) if edf is not None else None
         lim = self.robot.limits
         levels = [order] if p.hierarchy == "weighted" else [[name] for name in order]
         bounds: list[LexBound] = []
@@ -177,7 +209,7 @@ class HTMPC:
         for i, level in enumerate(levels):
             n_lex = sum(b.lin.e0.shape[1] for b in bounds)
             qp = self._qp(n_lex)
-            arrays = base_arrays(qp, p, it.q, rows, damping)
+            arrays = base_arrays(qp, p, it.q, rows, damping, step)
             for name in level:
                 task_cost(arrays, qp, lins[name], it.q, p)
             add_lex_rows(arrays, qp, bounds, it.q, tol)
@@ -187,7 +219,10 @@ class HTMPC:
                 guess = qp.layout.pack(it.q, it.v, it.a)
             sol = qp.solve(arrays.h, arrays.g, arrays.a, arrays.lba, arrays.uba, lbx, ubx, guess)
             level_ms.append(sol.solve_ms)
+            self.counts.qp_cold_restarts += sol.cold_restart
             if not sol.success:
+                self.counts.level1_qp_failures += i == 0
+                self.counts.lower_level_qp_failures += i > 0
                 failed, message = i, f"level {i + 1} QP failed ({sol.status})"
                 log.warning(message)
                 break
@@ -207,6 +242,15 @@ class HTMPC:
         min_h = float(rows.h[0].min()) if rows is not None else float("nan")
         return StepResult(q, v, a, s, level_ms, level_errors, failed, message, kin, lins, it.q, min_h,
                           level_solutions=solutions)
+
+    def _step_rows(self, x0: np.ndarray, it: _Iterate, edf: DistanceField) -> StepRows:
+        """The collision rows at the next control instant τ, linearised on the iterate's first interval."""
+        tau = 1.0 / self.params.control_rate_hz
+        q_tau = it.q[0] + tau * it.v[0] + 0.5 * tau**2 * it.a[0]
+        v_tau = it.v[0] + tau * it.a[0]
+        q2, v2 = np.stack([q_tau, q_tau]), np.stack([v_tau, v_tau])
+        rows = self.collision.rows(q2, self._step_kinematics(q2, v2), edf, v2)
+        return step_rows(rows, x0[:NQ], x0[NQ:], tau)
 
     def _true_errors(self, q: np.ndarray, names: list[str], refs: References) -> np.ndarray:
         """The exact (nonlinear) errors of tasks `names` at nodes 1..N of q, side by side (N, Σm)."""
@@ -243,9 +287,11 @@ class HTMPC:
         """One control step: a plan from the measured state, or a braking plan if anything is wrong."""
         p = self.params
         t0 = time.perf_counter()
+        self.counts.solves += 1
         order = [name for name in refs.order if (refs.base if name == "base" else refs.ee) is not None]
         n = len(order)
         if not (np.all(np.isfinite(state.q)) and np.all(np.isfinite(state.v)) and np.isfinite(state.t)):
+            self.counts.other_fallbacks += 1
             return self._fallback(state, n, "non-finite robot state", PlanStatus.STOPPING)
         if not order:
             self._previous = None
@@ -270,14 +316,17 @@ class HTMPC:
                     break
         except Exception as err:  # any fault inside the solve brakes the robot; a dead control loop does not
             log.exception("HTMPC step raised")
+            self.counts.exceptions += 1
             return self._fallback(state, n, f"controller error: {type(err).__name__}: {err}")
         elapsed = (time.perf_counter() - t0) * 1e3
         if step is None or step.failed_level == 0:
             return self._fallback(state, n, step.message if step else "no iteration")
         if self.enforce_timeout and elapsed > p.solve_timeout_ms:
+            self.counts.timeouts += 1
             return self._fallback(state, n, f"solve took {elapsed:.0f} ms > {p.solve_timeout_ms:.0f} ms")
         plan = self._plan(state, order, refs, step, tuple(level_ms))
         if not plan_is_safe(plan, self.robot.limits, tol=1e-4):
+            self.counts.other_fallbacks += 1
             return self._fallback(state, n, "solution outside the limits")
         self._previous = _Iterate(state.t, step.q, step.v, step.a)
         self.last_step = step

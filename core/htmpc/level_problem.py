@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.htmpc.collision_constraint import CollisionRows
+from core.htmpc.collision_constraint import CollisionRows, StepRows
 from core.htmpc.ocp_qp import NQ, QPLayout, StructuredQP
 from core.htmpc.tasks import Linearisation
 from core.params import HTMPCParams
@@ -54,9 +54,10 @@ def task_cost(arrays: LevelArrays, qp: StructuredQP, lin: Linearisation, q_bar: 
 
 
 def base_arrays(qp: StructuredQP, params: HTMPCParams, q_bar: np.ndarray, rows: CollisionRows | None,
-                damping: float | None = None) -> LevelArrays:
-    """Everything but the task costs and (7c): regularisation, slack costs, dynamics and collision rows.
-    `damping` is λ of ½ λ ‖q − q̄‖² (default `params.sqp_damping`)."""
+                damping: float | None = None, step: StepRows | None = None) -> LevelArrays:
+    """Everything but the task costs and (7c): regularisation, slack costs, dynamics and collision rows (at
+    nodes 1..N−1, and `step` in the first interval's acceleration). `damping` is λ of ½ λ ‖q − q̄‖² (default
+    `params.sqp_damping`)."""
     dt, L = params.dt_s, qp.layout
     h = np.zeros(qp.H_sp.nnz())
     g = np.zeros(L.nv)
@@ -74,7 +75,14 @@ def base_arrays(qp: StructuredQP, params: HTMPCParams, q_bar: np.ndarray, rows: 
     lba = np.zeros(L.na)
     uba = np.zeros(L.na)
     a[qp.A_col_s] = 1.0
+    a[qp.A_step_s] = 1.0
     uba[qp.row_col] = np.inf
+    uba[qp.row_step] = np.inf
+    if step is not None:
+        a[qp.A_step_a] = step.a_a
+        lba[qp.row_step] = step.lb
+    else:
+        lba[qp.row_step] = -np.inf
     if rows is not None:
         a[qp.A_col_q] = rows.a_q[: L.N - 1]
         a[qp.A_col_v] = rows.a_v[: L.N - 1]
@@ -144,5 +152,4 @@ def variable_bounds(layout: QPLayout, x0: np.ndarray, q_min: np.ndarray, q_max: 
             lbx[L.s(k)], ubx[L.s(k)] = 0.0, np.inf
     lbx[L.q(0)] = ubx[L.q(0)] = x0[:NQ]
     lbx[L.v(0)] = ubx[L.v(0)] = x0[NQ:]
-    lbx[L.s(0)] = ubx[L.s(0)] = 0.0
     return lbx, ubx

@@ -3,9 +3,10 @@
 Variables stage by stage: z = [x_0, u_0, x_1, u_1, …, x_N] with x_k = [q_k, v_k] (18) and
 u_k = [a_k (9 accelerations), s_k (M collision slacks)]. Rows in HPIPM's order: for each stage k the
 dynamics gap x_{k+1} = A x_k + B u_k, then the stage's own rows (collision rows with their slack,
-lexicographic rows (7c) of earlier levels); the terminal rows (7c at node N) come last. Stage 0 has
-no rows (x_0 is fixed by bounds), and the terminal node has no slack variables (HPIPM's casadi
-interface has no controls at stage N), so collision rows cover nodes 1…N−1.
+lexicographic rows (7c) of earlier levels); the terminal rows (7c at node N) come last. Stage 0's rows
+are the collision rows at the next control instant, on a_0 and s_0 only (x_0 is fixed by bounds); the
+terminal node has no slack variables (HPIPM's casadi interface has no controls at stage N), so the
+node collision rows cover nodes 1…N−1.
 
 Measured trap (FACTS.md): matrices must be passed with their sparse pattern, and the default 1e-8
 residual tolerances make HPIPM run into its iteration limit; 1e-6 converges in ~10 iterations.
@@ -36,6 +37,8 @@ class QPSolution:
     status: str
     iterations: int
     solve_ms: float
+    cold_restart: bool = False
+    """The warm-started solve stalled and this is the solve from the cold start."""
 
 
 class QPLayout:
@@ -50,7 +53,7 @@ class QPLayout:
         self.off_x = np.array([k * (NX + self.nu) for k in range(N + 1)])
         self.off_u = self.off_x[:N] + NX
         self.nv = N * (NX + self.nu) + NX
-        self.ng = [0] + [n_spheres + n_lex] * (N - 1) + [n_lex]
+        self.ng = [n_spheres] + [n_spheres + n_lex] * (N - 1) + [n_lex]
         row = 0
         self.row_gap, self.row_con = [], []
         for k in range(N):
@@ -115,6 +118,9 @@ def _pattern(layout: QPLayout) -> tuple[np.ndarray, np.ndarray]:
         A[r:r + NQ, L.a(k)] = eye
         A[r + NQ:r + NX, L.a(k)] = eye
         A[r:r + NX, L.off_x[k + 1]:L.off_x[k + 1] + NX] = np.eye(NX, dtype=bool)
+    r = L.row_con[0]
+    A[r:r + L.M, L.a(0)] = True
+    A[r + np.arange(L.M), L.s(0).start + L.slack_group] = True
     for k in range(1, L.N):
         r = L.row_con[k]
         A[r:r + L.M, L.q(k)] = True
@@ -161,6 +167,11 @@ class StructuredQP:
                                  for k in inner])
         self.A_lex_q = np.stack([self.A_pos[self.lex_rows(k), L.q(k)] for k in range(1, L.N + 1)])
         self.row_col = np.stack([L.row_con[k] + np.arange(L.M) for k in inner])
+        step = L.row_con[0] + np.arange(L.M)
+        self.A_step_a = self.A_pos[step[:, None], np.arange(L.a(0).start, L.a(0).stop)[None, :]]
+        self.A_step_s = self.A_pos[step, L.s(0).start + L.slack_group]
+        self.row_step = step
+        """Stage 0's rows: the collision rows at the next control instant, in a_0 (and their slack s_0)."""
         self.row_lex = np.stack([self.lex_rows(k) for k in range(1, L.N + 1)])
 
     def lex_rows(self, k: int) -> np.ndarray:
@@ -207,6 +218,7 @@ class StructuredQP:
             del args["x0"]
             z, ok, cold, more = self._call(args)
             status, iters = f"{status}, cold start {cold}", iters + more
+            return QPSolution(z, ok, status, iters, (time.perf_counter() - t0) * 1e3, cold_restart=True)
         return QPSolution(z, ok, status, iters, (time.perf_counter() - t0) * 1e3)
 
     def _call(self, args: dict) -> tuple[np.ndarray, bool, str, int]:
