@@ -28,7 +28,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from app.runtime import Runtime, RuntimeConfig
-from bench.experiments.measures import NEAR_OBSTACLE_M, run_metrics
+from bench.experiments.measures import NEAR_OBSTACLE_M, run_metrics, solver_figures
 from bench.experiments.report_files import fmt, md_table, rate, save_figure, stat, write_json, write_markdown
 from bench.experiments.trials import Trial, experiment_args, quiet_logs, trial_results
 from core.params import HTMPCParams, SequencerParams
@@ -68,7 +68,7 @@ def trial(params: dict) -> dict:
                         sequencer=replace(SequencerParams(), nominal_speed_mps=params["speed"]))
     rt = Runtime(cfg, scene=scene, sequence=seq)
     run_log = rt.run_lockstep(TIMEOUT_S + 2.0)
-    metrics = run_metrics(rt.run_state, run_log, rt.world.collisions)
+    metrics = run_metrics(rt.run_state, run_log, rt.world.collisions, rt.controller.counts)
     metrics["time_to_goal_s"] = metrics["duration_s"] if metrics["finished"] else math.nan
     return {**metrics, "status": rt.status_line()}
 
@@ -121,7 +121,7 @@ def summarise(results: list[dict], speeds: tuple[float, ...], gamma_speed: float
         figures |= _figures_of(_group(sweep, constraint="cbf", gamma=g), f"gamma_{g:g}")
     if _group(sweep, constraint="edf"):
         figures |= _figures_of(_group(sweep, constraint="edf"), "gamma_inf_edf")
-    return figures
+    return figures | solver_figures(results)
 
 
 def _bar(ax, results: list[dict], key: str, how: str, speeds: tuple[float, ...], ylabel: str) -> None:

@@ -1,6 +1,7 @@
 """What the experiments measure on a finished (or running) closed loop, from the simulator's ground truth.
 
-- `run_metrics`: outcome, collisions, clearance, time, path length, speed near obstacles of a run;
+- `run_metrics`: outcome, collisions, clearance, time, path length, speed near obstacles of a run, and the
+  controller's failures (`solver_metrics`, summed over trials by `solver_figures`);
 - `body_distance`: signed distance from one body group (base, arm, EE) to the nearest box (MuJoCo);
 - `collision_bodies`: which body groups touched a box;
 - `phantoms`: boxes taken away whose old place the map still holds as occupied;
@@ -17,6 +18,7 @@ import numpy as np
 
 from app.run_log import RunLog
 from app.snapshot import RunState
+from core.htmpc.htmpc import SolveCounts
 from core.sim.scene import Box
 from core.sim.world import CollisionEvent, SimWorld
 from core.types import DepthFrame
@@ -67,8 +69,24 @@ def collision_bodies(events: list[CollisionEvent]) -> dict[str, int]:
     return counts
 
 
-def run_metrics(run_state: RunState, log: RunLog, events: list[CollisionEvent]) -> dict[str, float | bool]:
-    """Figures of one run: finished, collision-free, clearance, time, path length, speeds."""
+def solver_metrics(counts: SolveCounts) -> dict[str, int]:
+    """The controller's failures during a run: QPs failed even from the cold start (any level), warm starts
+    that stalled and were rescued, exceptions inside the solve, other braking fallbacks."""
+    return {"qp_failures": counts.qp_failures, "qp_level1_failures": counts.level1_qp_failures,
+            "qp_cold_restarts": counts.qp_cold_restarts, "controller_exceptions": counts.exceptions,
+            "controller_solves": counts.solves}
+
+
+def solver_figures(results: list[dict]) -> dict[str, float]:
+    """`solver_metrics` summed over the trials (trials without them count as none)."""
+    keys = ("qp_failures", "qp_level1_failures", "qp_cold_restarts", "controller_exceptions", "controller_solves")
+    return {k: float(sum(r.get(k, 0) for r in results)) for k in keys}
+
+
+def run_metrics(run_state: RunState, log: RunLog, events: list[CollisionEvent],
+                counts: SolveCounts | None = None) -> dict[str, float | bool]:
+    """Figures of one run: finished, collision-free, clearance, time, path length, speeds, and with the
+    controller's `counts` its failures."""
     summary = log.summary()
     dist = np.array(log.min_distance_m, float)
     speed = np.array([math.hypot(v[0], v[1]) for v in log.v]) if log.v else np.zeros(0)
@@ -89,6 +107,7 @@ def run_metrics(run_state: RunState, log: RunLog, events: list[CollisionEvent]) 
         "speed_near_obstacles_mps": float(speed[near].mean()) if near.any() else math.nan,
         "solve_ms_median": summary["solve_ms_median"],
         "fallback_steps": summary["fallback_steps"],
+        **(solver_metrics(counts) if counts is not None else {}),
     }
 
 
