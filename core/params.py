@@ -269,9 +269,11 @@ class SequencerParams:
     lookahead_m: float = 1.5
     """In navigation the hand camera looks at the path point this far ahead."""
     grid_cell_m: float = 0.1
-    inflation_m: float = 0.8
-    """Obstacles are grown by this radius for A*: the base sphere (0.55 m) plus delta_safe (0.25 m), the
-    clearance the controller keeps, so planned paths are ones the controller can follow."""
+    inflation_m: float = 0.62
+    """Obstacles are grown by this radius for A*: the base's footprint (0.96 × 0.79 m) fits at any yaw within
+    it (its circumscribed radius). The clearance beyond the body is the constraint's to shape (delta_safe,
+    and the CBF's gamma): grown by the controller's whole clearance (0.8 m before), planned paths kept
+    h ≈ 0 and the CBF and the EDF constraint rarely differed (E2)."""
     obstacle_z_m: tuple[float, float] = (0.05, 2.0)
     """Occupied points between these heights block the base."""
     replan_period_s: float = 1.0
