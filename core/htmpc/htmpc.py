@@ -11,9 +11,10 @@ moving, `sqp_step_tol`), each damped (`sqp_damping`) and bounded by an adaptive 
 
 Public API: `HTMPC(robot, params).solve(state, refs, edf) -> Plan` (edf: anything with vectorised
 `distance(p)` and `gradient(p)`, e.g. `core.types.LocalEDF`, or None for no collision rows), `reset()`,
-and `enforce_timeout` (False in lockstep runs: simulated time waits for the solver). A failed QP, a
-non-finite state or map, a slow solve or an out-of-limit solution gives a braking plan along the last
-plan handed out (status FALLBACK or STOPPING, the reason in `message`; safety.py).
+and `enforce_timeout` (False in lockstep runs: simulated time waits for the solver). A failed QP, an
+exception of any type, a non-finite state or map, a slow solve or an out-of-limit solution gives a braking
+plan along the last plan handed out (status FALLBACK or STOPPING, the reason in `message`; safety.py);
+`counts` tallies them (`SolveCounts`).
 """
 
 from __future__ import annotations
