@@ -37,6 +37,11 @@ class RobotParams:
     """Position bound on the base x and y (a large room; the MPC needs finite numbers)."""
 
     @property
+    def footprint_radius_m(self) -> float:
+        """Radius of the circle round the base's footprint: inside it the base fits at any yaw (0.62 m)."""
+        return float(np.hypot(self.base_size_m[0] / 2, self.base_size_m[1] / 2))
+
+    @property
     def v_max(self) -> np.ndarray:
         """Speed limit per joint, |v| ≤ v_max, units m/s or rad/s."""
         return np.array([self.base_speed_mps, self.base_speed_mps, self.base_yaw_rate_radps, *self.arm_speed_radps])
@@ -269,11 +274,13 @@ class SequencerParams:
     lookahead_m: float = 1.5
     """In navigation the hand camera looks at the path point this far ahead."""
     grid_cell_m: float = 0.1
-    inflation_m: float = 0.62
-    """Obstacles are grown by this radius for A*: the base's footprint (0.96 × 0.79 m) fits at any yaw within
-    it (its circumscribed radius). The clearance beyond the body is the constraint's to shape (delta_safe,
-    and the CBF's gamma): grown by the controller's whole clearance (0.8 m before), planned paths kept
-    h ≈ 0 and the CBF and the EDF constraint rarely differed (E2)."""
+    inflation_m: float = 0.8
+    """Obstacles are grown by this radius for A*: about the clearance the controller keeps (the base's half
+    length 0.48 m + delta_safe 0.25 m, and a grid cell), so planned paths are ones it follows without pressing
+    on its constraints. The experiments that compare constraints plan with the footprint alone
+    (`RobotParams.footprint_radius_m`) and leave the clearance to the constraint: with 0.8 m planned paths
+    kept h ≈ 0 and the CBF and the EDF constraint rarely differed (E2). (With 0.62 m in E1 the robot drove
+    close enough to the vacated places to clear the voxel map's phantoms: a different experiment.)"""
     obstacle_z_m: tuple[float, float] = (0.05, 2.0)
     """Occupied points between these heights block the base."""
     replan_period_s: float = 1.0

@@ -9,7 +9,10 @@ map (the simulator's exact EDF), on the perceived object-level map (POCD from th
 cameras), and on the perceived map with the paper's closed-loop delay (0.45 s perception, 0.05 s
 actuation, as E3; without it the simulated perception is fresher than the paper's robot). The robot
 drives from (−3.5, 0) to (3.5, 0) with whole-body navigation [base, EE]; the reference advances along
-the A* path at the trial's speed (`SequencerParams.nominal_speed_mps`).
+the A* path at the trial's speed (`SequencerParams.nominal_speed_mps`). A* grows the boxes by the base's
+footprint only (its circumscribed radius, 0.62 m), so the clearance beyond the body is what the constraint
+makes of it; grown by the whole clearance (0.8 m, the studio's default), planned paths keep h ≈ 0 and
+the two constraints have little to differ on.
 Gamma sweep: the CBF with several gammas on the perceived map at the highest speed, same scenes.
 
 Measured per trial: reached the goal (within 60 s), collision-free (no MuJoCo contact of any robot
@@ -34,7 +37,7 @@ from app.runtime import Runtime, RuntimeConfig
 from bench.experiments.measures import NEAR_OBSTACLE_M, run_metrics, solver_figures
 from bench.experiments.report_files import fmt, md_table, rate, save_figure, stat, write_json, write_markdown
 from bench.experiments.trials import Trial, experiment_args, quiet_logs, trial_results
-from core.params import HTMPCParams, SequencerParams
+from core.params import HTMPCParams, RobotParams, SequencerParams
 from core.sim.scene import random_scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 
@@ -68,7 +71,8 @@ def trial(params: dict) -> dict:
     cfg = RuntimeConfig(map_kind=MAP_KIND[params["map"]], constraint=params["constraint"], seed=params["seed"],
                         perception_delay_s=perception_s, actuation_delay_s=actuation_s,
                         htmpc=replace(HTMPCParams(), gamma=params["gamma"]),
-                        sequencer=replace(SequencerParams(), nominal_speed_mps=params["speed"]))
+                        sequencer=replace(SequencerParams(), nominal_speed_mps=params["speed"],
+                                          inflation_m=RobotParams().footprint_radius_m))
     rt = Runtime(cfg, scene=scene, sequence=seq)
     run_log = rt.run_lockstep(TIMEOUT_S + 2.0)
     metrics = run_metrics(rt.run_state, run_log, rt.world.collisions, rt.controller.counts)
