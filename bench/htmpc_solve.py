@@ -66,7 +66,7 @@ class RunLog:
     violation: list[float] = field(default_factory=list)
     fallbacks: int = 0
     qp_failures: int = 0
-    qp_cold_restarts: int = 0
+    qp_rescues: int = 0
     over_budget: int = 0
     """Solves slower than `solve_timeout_ms` (a live run would have braked)."""
 
@@ -128,7 +128,7 @@ def closed_loop(robot: RobotModel, params: HTMPCParams, levels: int, seconds: fl
                 compare_with_ipopt(log, reference, controller, state, refs, edf, warm, ms)
         sim.command(plan.velocity_at(state.t), state.t)
         sim.step(0.01)
-    log.qp_failures, log.qp_cold_restarts = controller.counts.qp_failures, controller.counts.qp_cold_restarts
+    log.qp_failures, log.qp_rescues = controller.counts.qp_failures, controller.counts.qp_rescues
     return log
 
 
@@ -173,7 +173,7 @@ def main(argv: list[str] | None = None) -> None:
         "ipopt_states": float(len(l2.ipopt_ms)),
         "fallbacks": float(l1.fallbacks + l2.fallbacks + l2n20.fallbacks),
         "qp_failures": float(l1.qp_failures + l2.qp_failures + l2n20.qp_failures),
-        "qp_cold_restarts": float(l1.qp_cold_restarts + l2.qp_cold_restarts + l2n20.qp_cold_restarts),
+        "qp_rescues": float(l1.qp_rescues + l2.qp_rescues + l2n20.qp_rescues),
         "solves_over_timeout": float(l1.over_budget + l2.over_budget + l2n20.over_budget),
         **priority,
         "sphere_cover_gap_m": max(cover.values()),
@@ -186,7 +186,7 @@ def main(argv: list[str] | None = None) -> None:
                   "priority_leak_m": "m", "priority_leak_deg": "deg", "level2_gain_min_m": "m",
                   "priority_case_collisions": "", "sphere_cover_gap_m": "m"})
     units.update({"speedup_vs_ipopt": "x", "speedup_vs_ipopt_solver_only": "x", "solves_l2_n10": "",
-                  "ipopt_states": "", "fallbacks": "", "qp_failures": "", "qp_cold_restarts": "",
+                  "ipopt_states": "", "fallbacks": "", "qp_failures": "", "qp_rescues": "",
                   "solves_over_timeout": "", "load_avg_before": "", "load_avg_after": ""})
     targets = {"l2_n10_median_ms": "<= 10", "l2_n10_p99_ms": "<= 25", "speedup_vs_ipopt": ">= 4",
                "cost_gap_pct": "<= 1", "priority_leak_m": "<= 0.01", "priority_leak_deg": "<= 1",

@@ -78,16 +78,16 @@ def _approach_figures(rates: np.ndarray) -> dict[str, float]:
 
 
 def solver_metrics(counts: SolveCounts) -> dict[str, int]:
-    """The controller's failures during a run: QPs failed even from the cold start (any level), warm starts
-    that stalled and were rescued, exceptions inside the solve, other braking fallbacks."""
+    """The controller's failures during a run: QPs failed even in HPIPM's rescue mode (any level), stalled QPs
+    rescued, exceptions inside the solve, other braking fallbacks."""
     return {"qp_failures": counts.qp_failures, "qp_level1_failures": counts.level1_qp_failures,
-            "qp_cold_restarts": counts.qp_cold_restarts, "controller_exceptions": counts.exceptions,
+            "qp_rescues": counts.qp_rescues, "controller_exceptions": counts.exceptions,
             "controller_solves": counts.solves}
 
 
 def solver_figures(results: list[dict]) -> dict[str, float]:
     """`solver_metrics` summed over the trials (trials without them count as none)."""
-    keys = ("qp_failures", "qp_level1_failures", "qp_cold_restarts", "controller_exceptions", "controller_solves")
+    keys = ("qp_failures", "qp_level1_failures", "qp_rescues", "controller_exceptions", "controller_solves")
     return {k: float(sum(r.get(k, 0) for r in results)) for k in keys}
 
 

@@ -81,8 +81,8 @@ class SolveCounts:
     """Failed level-1 QPs: the step brakes (safety.py)."""
     lower_level_qp_failures: int = 0
     """Failed QPs of levels ≥ 2: the step hands out the level above's plan."""
-    qp_cold_restarts: int = 0
-    """Warm-started QPs that stalled and solved from the cold start."""
+    qp_rescues: int = 0
+    """QPs that stalled and were solved again in HPIPM's rescue mode (`ocp_qp.RESCUE_MODE`)."""
     exceptions: int = 0
     timeouts: int = 0
     other_fallbacks: int = 0
@@ -90,7 +90,7 @@ class SolveCounts:
 
     @property
     def qp_failures(self) -> int:
-        """QPs that failed even from the cold start, at any level."""
+        """QPs that failed even in the rescue mode, at any level."""
         return self.level1_qp_failures + self.lower_level_qp_failures
 
 
@@ -220,7 +220,7 @@ class HTMPC:
                 guess = qp.layout.pack(it.q, it.v, it.a)
             sol = qp.solve(arrays.h, arrays.g, arrays.a, arrays.lba, arrays.uba, lbx, ubx, guess)
             level_ms.append(sol.solve_ms)
-            self.counts.qp_cold_restarts += sol.cold_restart
+            self.counts.qp_rescues += sol.rescued
             if not sol.success:
                 self.counts.level1_qp_failures += i == 0
                 self.counts.lower_level_qp_failures += i > 0

@@ -28,6 +28,12 @@ HPIPM_OPTIONS = {"mode": "speed_abs", "res_g_max": 1e-6, "res_b_max": 1e-6, "res
                  "iter_max": 60, "warm_start": 1}
 """`warm_start` 1: the interior point starts from the primal guess (the linearisation point, or the previous
 level's solution): 7 instead of 12 iterations on a closed-loop run, same costs."""
+RESCUE_MODE = "balance"
+"""HPIPM's mode for a second attempt when a solve in `speed_abs` stalls (status 1, iteration limit, or 2,
+minimum step). Every stalled QP of the closed-loop runs and experiments (a primal guess on the boundary of a
+narrow feasible set: the previous level's optimum against its (7c) rows, a warm start at a velocity limit)
+solved in 10–15 iterations in 'balance' (and in 'robust'); a cold start in 'speed_abs' rescued some of them,
+more iterations none. 'balance' is not the default: it costs more per iteration."""
 
 
 @dataclass(frozen=True)
@@ -37,8 +43,8 @@ class QPSolution:
     status: str
     iterations: int
     solve_ms: float
-    cold_restart: bool = False
-    """The warm-started solve stalled and this is the solve from the cold start."""
+    rescued: bool = False
+    """The first solve stalled and this is the second attempt's (`RESCUE_MODE`)."""
 
 
 class QPLayout:
@@ -155,6 +161,8 @@ class StructuredQP:
         opts = {"N": L.N, "nx": [NX] * (L.N + 1), "nu": [L.nu] * L.N + [0], "ng": L.ng,
                 "hpipm": dict(HPIPM_OPTIONS), "error_on_fail": False}
         self.solver = ca.conic("htmpc_qp", "hpipm", {"h": self.H_sp, "a": self.A_sp}, opts)
+        self._opts = opts
+        self._rescue: ca.Function | None = None
         self.A_dynamics_nz = self._dynamics_nz()
         self.H_qq = np.stack([self.H_pos[L.q(k), L.q(k)] for k in range(L.N + 1)])
         self.H_vv = np.stack([self.H_pos[L.v(k), L.v(k)] for k in range(L.N + 1)])
@@ -210,24 +218,27 @@ class StructuredQP:
                 "uba": uba, "lbx": lbx, "ubx": ubx}
         if guess is not None:
             args["x0"] = guess
-        z, ok, status, iters = self._call(args)
-        if not ok and guess is not None:
-            # A primal guess on the boundary of a narrow feasible set (the previous level's optimum against its
-            # (7c) rows, a warm start at a velocity limit) can stall the interior point (status 1: iteration
-            # limit, 2: minimum step); every stalled QP of the closed-loop runs solved from the cold start.
-            del args["x0"]
-            z, ok, cold, more = self._call(args)
-            status, iters = f"{status}, cold start {cold}", iters + more
-            return QPSolution(z, ok, status, iters, (time.perf_counter() - t0) * 1e3, cold_restart=True)
+        z, ok, status, iters = self._call(self.solver, args)
+        if not ok and status in ("1", "2"):  # stalled: iteration limit or minimum step (`RESCUE_MODE`)
+            z, ok, again, more = self._call(self._rescue_solver(), args)
+            status, iters = f"{status}, {RESCUE_MODE} {again}", iters + more
+            return QPSolution(z, ok, status, iters, (time.perf_counter() - t0) * 1e3, rescued=True)
         return QPSolution(z, ok, status, iters, (time.perf_counter() - t0) * 1e3)
 
-    def _call(self, args: dict) -> tuple[np.ndarray, bool, str, int]:
+    def _rescue_solver(self) -> ca.Function:
+        """The same QP in HPIPM's `RESCUE_MODE`, built on first need (tens of ms, rare)."""
+        if self._rescue is None:
+            opts = dict(self._opts, hpipm=dict(self._opts["hpipm"], mode=RESCUE_MODE))
+            self._rescue = ca.conic("htmpc_qp_rescue", "hpipm", {"h": self.H_sp, "a": self.A_sp}, opts)
+        return self._rescue
+
+    def _call(self, solver: ca.Function, args: dict) -> tuple[np.ndarray, bool, str, int]:
         """One HPIPM call: (z, success, HPIPM's status, iterations)."""
         try:
-            out = self.solver(**args)
+            out = solver(**args)
         except RuntimeError as err:  # casadi raises on malformed input
             return np.full(self.layout.nv, np.nan), False, f"solver error: {err}", 0
-        stats = self.solver.stats()
+        stats = solver.stats()
         z = out["x"].full().ravel()
         ok = bool(stats.get("success", False)) and bool(np.all(np.isfinite(z)))
         return z, ok, str(stats.get("return_status", "")), int(stats.get("iter_count", -1))
