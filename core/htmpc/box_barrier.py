@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.htmpc.collision_constraint import DistanceField
+from core.htmpc.collision_constraint import DistanceField, distance_and_gradient
 from core.robot.collision_boxes import CollisionBox
 
 SIDES = ("front", "back", "left", "right")
@@ -94,12 +94,6 @@ class BoxBarrier:
         dvel[:, :, 0, 2] = -v[:, 2:3] * turned[..., 0]  # ∂/∂yaw of yaw_rate · ∂(R p)/∂yaw = −yaw_rate (R p)_xy
         dvel[:, :, 1, 2] = -v[:, 2:3] * turned[..., 1]
         return BoxPoints(P, JP, dvel)
-
-
-def distance_and_gradient(edf: DistanceField, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """EDF value and gradient at p, from one lookup where the field offers it (`LocalEDF`)."""
-    both = getattr(edf, "distance_and_gradient", None)
-    return both(p) if both is not None else (edf.distance(p), edf.gradient(p))
 
 
 def _yaw_matrices(yaw: np.ndarray) -> np.ndarray:

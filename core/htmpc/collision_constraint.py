@@ -65,6 +65,12 @@ def step_rows(rows: CollisionRows, q0: np.ndarray, v0: np.ndarray, tau: float) -
                     h=rows.h[0])
 
 
+def distance_and_gradient(edf: DistanceField, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """EDF value and gradient at p, from one lookup where the field offers it (`LocalEDF`)."""
+    both = getattr(edf, "distance_and_gradient", None)
+    return both(p) if both is not None else (edf.distance(p), edf.gradient(p))
+
+
 class CollisionConstraint:
     """Builds the linearised EDF or CBF rows (METHOD.md, eq. 10)."""
 
@@ -91,19 +97,24 @@ class CollisionConstraint:
     def rows(self, q_bar: np.ndarray, kin: HorizonKinematics, edf: DistanceField,
              v_bar: np.ndarray | None = None) -> CollisionRows:
         """Rows for nodes 1..K−1 of the iterate q̄ (K, 9) with velocities v̄ (zero if None)."""
-        P, JP = kin.P[1:], kin.JP[1:]
-        dvel = kin.dvel_dq[1:] if kin.dvel_dq is not None else np.zeros_like(JP)
+        dvel = kin.dvel_dq[1:] if kin.dvel_dq is not None else np.zeros_like(kin.JP[1:])
+        v = np.zeros_like(q_bar) if v_bar is None else v_bar
+        return self.rows_at(q_bar[1:], v[1:], kin.P[1:], kin.JP[1:], dvel, edf)
+
+    def rows_at(self, q: np.ndarray, v: np.ndarray, P: np.ndarray, JP: np.ndarray, dvel: np.ndarray,
+                edf: DistanceField) -> CollisionRows:
+        """Rows at any K configurations q (K, 9) with velocities v, given their spheres' centres P (K, M, 3),
+        Jacobians JP and ∂(J_P v)/∂q; the base boxes' rows are added here. One batch of EDF queries for all."""
         if self.boxes is not None:
-            v = np.zeros_like(q_bar) if v_bar is None else v_bar
-            pts = self.boxes.points(q_bar[1:], v[1:], edf)
+            pts = self.boxes.points(q, v, edf)
             P, JP = np.concatenate([P, pts.P], axis=1), np.concatenate([JP, pts.JP], axis=1)
             dvel = np.concatenate([dvel, pts.dvel_dq], axis=1)
-        h = self.barrier(edf, P)
-        grad = edf.gradient(P)
+        d, grad = distance_and_gradient(edf, P)
+        h = d - self.radii - self.delta_safe_m
         g = np.einsum("kmc,kmcj->kmj", grad, JP)
-        gq = np.einsum("kmj,kj->km", g, q_bar[1:])
+        gq = np.einsum("kmj,kj->km", g, q)
         if self.kind == "edf":
             return CollisionRows(a_q=g, a_v=np.zeros_like(g), lb=gq - h, h=h)
         c = np.einsum("kmc,kmcj->kmj", grad, dvel)
         a_q = self.gamma * g + c
-        return CollisionRows(a_q=a_q, a_v=g, lb=np.einsum("kmj,kj->km", a_q, q_bar[1:]) - self.gamma * h, h=h)
+        return CollisionRows(a_q=a_q, a_v=g, lb=np.einsum("kmj,kj->km", a_q, q) - self.gamma * h, h=h)

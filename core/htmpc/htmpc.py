@@ -198,8 +198,7 @@ class HTMPC:
         p = self.params
         kin = self.kinematics(it.q, it.v)
         lins = self._linearise(order, refs, it.q, kin)
-        rows: CollisionRows | None = self.collision.rows(it.q, kin, edf, it.v) if edf is not None else None
-        step = self._step_rows(x0, it, edf) if edf is not None else None
+        rows, step = self._collision_rows(x0, it, kin, edf) if edf is not None else (None, None)
         lim = self.robot.limits
         levels = [order] if p.hierarchy == "weighted" else [[name] for name in order]
         bounds: list[LexBound] = []
@@ -244,14 +243,21 @@ class HTMPC:
         return StepResult(q, v, a, s, level_ms, level_errors, failed, message, kin, lins, it.q, min_h,
                           level_solutions=solutions)
 
-    def _step_rows(self, x0: np.ndarray, it: _Iterate, edf: DistanceField) -> StepRows:
-        """The collision rows at the next control instant τ, linearised on the iterate's first interval."""
-        tau = 1.0 / self.params.control_rate_hz
+    def _collision_rows(self, x0: np.ndarray, it: _Iterate, kin: HorizonKinematics,
+                        edf: DistanceField) -> tuple[CollisionRows, StepRows]:
+        """The collision rows at nodes 1..N−1 and at the next control instant τ (`StepRows`, linearised on the
+        iterate's first interval), from one batch of EDF queries."""
+        N, tau = self.params.N, 1.0 / self.params.control_rate_hz
         q_tau = it.q[0] + tau * it.v[0] + 0.5 * tau**2 * it.a[0]
         v_tau = it.v[0] + tau * it.a[0]
         q2, v2 = np.stack([q_tau, q_tau]), np.stack([v_tau, v_tau])
-        rows = self.collision.rows(q2, self._step_kinematics(q2, v2), edf, v2)
-        return step_rows(rows, x0[:NQ], x0[NQ:], tau)
+        at_tau = self._step_kinematics(q2, v2)
+        rows = self.collision.rows_at(
+            np.vstack([it.q[1:N], q_tau]), np.vstack([it.v[1:N], v_tau]), np.concatenate([kin.P[1:N], at_tau.P[1:]]),
+            np.concatenate([kin.JP[1:N], at_tau.JP[1:]]), np.concatenate([kin.dvel_dq[1:N], at_tau.dvel_dq[1:]]), edf)
+        nodes = CollisionRows(rows.a_q[:-1], rows.a_v[:-1], rows.lb[:-1], rows.h[:-1])
+        last = CollisionRows(rows.a_q[-1:], rows.a_v[-1:], rows.lb[-1:], rows.h[-1:])
+        return nodes, step_rows(last, x0[:NQ], x0[NQ:], tau)
 
     def _true_errors(self, q: np.ndarray, names: list[str], refs: References) -> np.ndarray:
         """The exact (nonlinear) errors of tasks `names` at nodes 1..N of q, side by side (N, Σm)."""
