@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.params import HTMPCParams
+from core.params import HTMPCParams, SequencerParams
 from core.types import ObjectMapSnapshot, ObjectStatus
 from tasks.schema import TaskSequence
 from tasks.validation import Obstacle, RobotEnvelope, TargetFinding, box_distance, require_valid
@@ -50,7 +50,8 @@ def nearest_obstacle(xy: np.ndarray, obstacles: tuple[Obstacle, ...]) -> str | N
 def envelope_of(runtime) -> RobotEnvelope:
     """The robot's envelope with the delta_safe the runtime's controller keeps."""
     htmpc = getattr(runtime.config, "htmpc", None) or HTMPCParams()
-    return RobotEnvelope.of(runtime.robot, htmpc.delta_safe_m)
+    sequencer = getattr(runtime.config, "sequencer", None) or SequencerParams()
+    return RobotEnvelope.of(runtime.robot, htmpc.delta_safe_m, base_clearance_m=sequencer.inflation_m)
 
 
 def check_targets(runtime, sequence: TaskSequence, *, scene_may_change: bool = False,

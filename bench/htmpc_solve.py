@@ -1,6 +1,9 @@
-"""HTMPC solve time over a closed-loop navigation run (CBF on, all 14 spheres, ground-truth EDF):
+"""HTMPC solve time over a closed-loop navigation run (CBF on, all collision rows, ground-truth EDF):
 1 and 2 levels at N = 10, 2 levels at N = 20, and the IPOPT reference on the same states in the same
-run (speed ratio and cost gap).
+run (speed ratio and cost gap). Beside them the controller's two promises: strict priority in closed loop
+(`priority_leak_m`, `bench/priority_leak.py`) and collision geometry that covers the robot
+(`sphere_cover_gap_m`: the largest distance of any sampled MuJoCo robot surface point outside the
+controller's spheres and base boxes, `core/sim/collision_cover.py`).
 
     python -m bench.htmpc_solve [--quick]
 
@@ -31,11 +34,13 @@ import numpy as np
 from rich.progress import track
 
 import core.sim  # noqa: F401  (GL backend first)
+from bench.priority_leak import priority_figures
 from bench.report import bench_args, percentile, write_result
 from core.htmpc import HTMPC
 from core.htmpc.ipopt_reference import IpoptReference
 from core.params import HTMPCParams
 from core.robot.model import READY_Q, RobotModel
+from core.sim.collision_cover import cover_gaps
 from core.sim.ground_truth import ground_truth_edf
 from core.sim.scene import random_scene
 from core.sim.sim_robot import SimRobot
@@ -60,6 +65,8 @@ class RunLog:
     gap_pct: list[list[float]] = field(default_factory=list)
     violation: list[float] = field(default_factory=list)
     fallbacks: int = 0
+    qp_failures: int = 0
+    qp_rescues: int = 0
     over_budget: int = 0
     """Solves slower than `solve_timeout_ms` (a live run would have braked)."""
 
@@ -121,6 +128,7 @@ def closed_loop(robot: RobotModel, params: HTMPCParams, levels: int, seconds: fl
                 compare_with_ipopt(log, reference, controller, state, refs, edf, warm, ms)
         sim.command(plan.velocity_at(state.t), state.t)
         sim.step(0.01)
+    log.qp_failures, log.qp_rescues = controller.counts.qp_failures, controller.counts.qp_rescues
     return log
 
 
@@ -136,6 +144,10 @@ def main(argv: list[str] | None = None) -> None:
                      "2 levels, N=10 (+ IPOPT)")
     n20 = replace(base, N=20, dt_s=0.15)
     l2n20 = closed_loop(robot, n20, 2, seconds, None, every, "2 levels, N=20")
+    priority = priority_figures(robot, 10.0 if args.quick else 15.0)
+    rng = np.random.default_rng(0)
+    configurations = [READY_Q] + [robot.random_q(rng) for _ in range(5 if args.quick else 20)]
+    cover = cover_gaps(SimWorld(robot), robot, configurations)
     ours_at_ipopt = percentile(l2.ours_at_ipopt_ms, 50)
     figures = {
         "l1_n10_median_ms": percentile(l1.wall_ms, 50),
@@ -160,18 +172,25 @@ def main(argv: list[str] | None = None) -> None:
         "solves_l2_n10": float(len(l2.wall_ms)),
         "ipopt_states": float(len(l2.ipopt_ms)),
         "fallbacks": float(l1.fallbacks + l2.fallbacks + l2n20.fallbacks),
+        "qp_failures": float(l1.qp_failures + l2.qp_failures + l2n20.qp_failures),
+        "qp_rescues": float(l1.qp_rescues + l2.qp_rescues + l2n20.qp_rescues),
         "solves_over_timeout": float(l1.over_budget + l2.over_budget + l2n20.over_budget),
+        **priority,
+        "sphere_cover_gap_m": max(cover.values()),
         "load_avg_before": load_before,
         "load_avg_after": os.getloadavg()[0],
     }
     units = {k: "ms" for k in figures if k.endswith("_ms")}
     units.update({k: "%" for k in figures if k.endswith("_pct")})
-    units.update({"collision_row_violation_p90": "m/s", "collision_row_violation_max": "m/s"})
+    units.update({"collision_row_violation_p90": "m/s", "collision_row_violation_max": "m/s",
+                  "priority_leak_m": "m", "priority_leak_deg": "deg", "level2_gain_min_m": "m",
+                  "priority_case_collisions": "", "sphere_cover_gap_m": "m"})
     units.update({"speedup_vs_ipopt": "x", "speedup_vs_ipopt_solver_only": "x", "solves_l2_n10": "",
-                  "ipopt_states": "", "fallbacks": "", "solves_over_timeout": "", "load_avg_before": "",
-                  "load_avg_after": ""})
+                  "ipopt_states": "", "fallbacks": "", "qp_failures": "", "qp_rescues": "",
+                  "solves_over_timeout": "", "load_avg_before": "", "load_avg_after": ""})
     targets = {"l2_n10_median_ms": "<= 10", "l2_n10_p99_ms": "<= 25", "speedup_vs_ipopt": ">= 4",
-               "cost_gap_pct": "<= 1"}
+               "cost_gap_pct": "<= 1", "priority_leak_m": "<= 0.01", "priority_leak_deg": "<= 1",
+               "level2_gain_min_m": "> 0", "sphere_cover_gap_m": "0"}
     write_result("htmpc_solve", figures, units, targets, quick=args.quick)
 
 

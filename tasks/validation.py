@@ -2,8 +2,9 @@
 
 One function, `check_sequence`, serves the studio, YAML files, the bridge API and `app run`:
 
-- **base clearance**: a base goal or waypoint keeps the base's clearance from every box (base sphere
-  0.55 m + delta_safe 0.25 m = 0.8 m from its footprint; the planner grows obstacles by the same radius);
+- **base clearance**: a base goal or waypoint keeps the planner's clearance from every box footprint
+  (`SequencerParams.inflation_m`, 0.8 m: the base's half length 0.48 m + delta_safe 0.25 m and a grid
+  cell; A* would move a goal closer than that);
 - **hand clearance**: an EE target keeps the hand's spheres (wrist 0.2 m, tool 0.15 m, rigid in the EE
   frame) delta_safe from every box, and above the floor;
 - **reach**: an EE target is within the arm's reach (shoulder to EE, less `reach_margin_m`) from some
@@ -27,11 +28,12 @@ from typing import Protocol
 
 import numpy as np
 
+from core.params import SequencerParams
+from core.robot.collision_boxes import base_boxes
 from core.robot.model import RobotModel
 from core.yaml_validation import FileFormatError, line_of
 from tasks.schema import BasePose, BaseSubtask, EEPose, EESubtask, TaskSequence
 
-BASE_SPHERES = ("base", "rack_low", "rack_high")
 HAND_SPHERES = ("wrist_3", "tool")
 """Spheres rigid in the EE frame (the wrist_2 sphere turns with the last joint about the tool axis)."""
 REACH_MARGIN_M = 0.1
@@ -180,12 +182,12 @@ class RobotEnvelope:
     """What the checks need to know of the robot, from its model and the controller's delta_safe."""
 
     delta_safe_m: float
-    base_radius_m: float
-    """Radius of the base sphere (the base keeps base_radius + delta_safe from boxes)."""
+    base_clearance_m: float
+    """How far the base centre keeps from box footprints: the planner's obstacle inflation."""
     base_top_m: float
-    """Boxes whose bottom is above this (the top of the base and rack spheres + delta_safe) do not block the base."""
-    base_body: tuple[tuple[np.ndarray, float], ...]
-    """Base and rack spheres: centre in the base frame, radius."""
+    """Boxes whose bottom is above this (the top of the base's rack + delta_safe) do not block the base."""
+    base_body: tuple[tuple[np.ndarray, np.ndarray], ...]
+    """The base's collision boxes (body, rack) in the base frame: lower and upper corner."""
     hand: tuple[tuple[str, np.ndarray, float], ...]
     """Hand spheres rigid in the EE frame: name, centre in the EE frame, radius."""
     shoulder_m: np.ndarray
@@ -195,12 +197,9 @@ class RobotEnvelope:
     wrist_reach_m: float
     """Shoulder to the wrist_3 sphere centre, full stretch less the margin (for targets with an orientation)."""
 
-    @property
-    def base_clearance_m(self) -> float:
-        return self.base_radius_m + self.delta_safe_m
-
     @classmethod
-    def of(cls, robot: RobotModel, delta_safe_m: float, reach_margin_m: float = REACH_MARGIN_M) -> RobotEnvelope:
+    def of(cls, robot: RobotModel, delta_safe_m: float, reach_margin_m: float = REACH_MARGIN_M,
+           base_clearance_m: float = SequencerParams().inflation_m) -> RobotEnvelope:
         shoulder, reach, wrist_reach = _arm_reach(robot)
         q0 = np.zeros(robot.nq)
         q0[3:] = [0.0, -1.6, 2.2, -0.2, math.pi / 2, math.pi]
@@ -209,9 +208,9 @@ class RobotEnvelope:
         names = [s.name for s in robot.spheres]
         radii = {s.name: s.radius_m for s in robot.spheres}
         in_ee = {n: (np.linalg.inv(T_ee) @ np.r_[c, 1.0])[:3] for n, c in zip(names, centres, strict=True)}
-        body = tuple((centres[names.index(n)], radii[n]) for n in BASE_SPHERES)
-        return cls(delta_safe_m=delta_safe_m, base_radius_m=radii["base"],
-                   base_top_m=max(c[2] + r for c, r in body) + delta_safe_m, base_body=body,
+        body = tuple((b.lo, b.hi) for b in base_boxes(robot.params))
+        return cls(delta_safe_m=delta_safe_m, base_clearance_m=base_clearance_m,
+                   base_top_m=max(hi[2] for _, hi in body) + delta_safe_m, base_body=body,
                    hand=tuple((n, in_ee[n], radii[n]) for n in HAND_SPHERES), shoulder_m=shoulder,
                    reach_m=reach - reach_margin_m, wrist_reach_m=wrist_reach - reach_margin_m)
 
@@ -267,7 +266,7 @@ def check_base_pose(xy: np.ndarray, boxes: Sequence[BoxLike], env: RobotEnvelope
     box = blocking[int(k[0])]
     where = "inside" if d[0] < 0 else f"{d[0]:.2f} m from"
     reason = (f"{what} {_fmt(xy)} is {where} {box.id}; the base keeps {env.base_clearance_m:.2f} m from boxes "
-              f"(base sphere {env.base_radius_m:.2f} m + delta_safe {env.delta_safe_m:.2f} m)")
+              f"(the planner's clearance: the base's half length, delta_safe {env.delta_safe_m:.2f} m and a grid cell)")
     return reason, _rounded(nearest_acceptable(xy, _base_violation(boxes, env)))
 
 
@@ -388,12 +387,17 @@ def _base_frame_findings(pose: EEPose, env: RobotEnvelope) -> list[tuple[Rule, s
         out.append((Rule.REACH, f"the {'wrist' if R is not None else 'hand'} would be {dist:.2f} m from the "
                     f"shoulder; the arm reaches {reach:.2f} m"))
     for name, c, r in _hand_points(p, R, env):
-        gaps = [float(np.linalg.norm(c - s)) - r - rs for s, rs in env.base_body]
+        gaps = [float(_box_gap(c, lo, hi)) - r for lo, hi in env.base_body]
         if min(gaps) < 0:
             out.append((Rule.SELF_COLLISION, f"the hand's {name} would be {-min(gaps):.2f} m inside the "
                         "robot's own base"))
             break
     return out
+
+
+def _box_gap(c: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Distance from points c (…, 3) to an axis-aligned box [lo, hi] (0 inside)."""
+    return np.linalg.norm(np.maximum(np.maximum(lo - c, c - hi), 0.0), axis=-1)
 
 
 def _self_violation(R: np.ndarray | None, env: RobotEnvelope):
@@ -402,8 +406,8 @@ def _self_violation(R: np.ndarray | None, env: RobotEnvelope):
         worst = np.full(len(p), -np.inf)
         for _, c, r in _hand_points(p, R, env):
             worst = np.maximum(worst, r + ACCEPT_MARGIN_M - c[..., 2])
-            for s, rs in env.base_body:
-                worst = np.maximum(worst, r + rs + ACCEPT_MARGIN_M - np.linalg.norm(c - s, axis=-1))
+            for lo, hi in env.base_body:
+                worst = np.maximum(worst, r + ACCEPT_MARGIN_M - _box_gap(c, lo, hi))
         w, reach = _reach_point(p, R, env)
         return np.maximum(worst, np.linalg.norm(w - env.shoulder_m, axis=-1) - reach + ACCEPT_MARGIN_M)
     return violation

@@ -37,15 +37,13 @@ class RobotView:
                  meshes: str = "collision") -> None:
         self.robot = robot
         self.frames: dict[str, viser.FrameHandle] = {}
-        lx, ly, lz = robot.params.base_size_m
         for link in robot.link_names:
             frame = server.scene.add_frame(f"{name}/{link}", show_axes=False)
             self.frames[link] = frame
             if link == "mobile_base":
-                server.scene.add_box(f"{name}/{link}/body", color=(45, 45, 50), dimensions=(lx, ly, lz - 0.08),
-                                     position=(0.0, 0.0, lz / 2 + 0.04))
-                server.scene.add_box(f"{name}/{link}/rack", color=(60, 60, 66), dimensions=(0.4, 0.5, 0.6),
-                                     position=(-0.25, 0.0, lz + 0.3))
+                for box, colour in zip(robot.boxes, ((45, 45, 50), (60, 60, 66)), strict=True):
+                    server.scene.add_box(f"{name}/{link}/{box.name}", color=colour,
+                                         dimensions=tuple(2 * h for h in box.half_m), position=box.centre_m)
             elif link in ARM_LINKS:
                 server.scene.add_mesh_trimesh(f"{name}/{link}/mesh", _link_mesh(link, meshes))
 

@@ -32,7 +32,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from app.runtime import Runtime
-from bench.experiments.measures import PhantomCount, box_in_view, in_view, phantoms, run_metrics
+from bench.experiments.measures import PhantomCount, box_in_view, in_view, phantoms, run_metrics, solver_figures
 from bench.experiments.report_files import fmt, md_table, rate, save_figure, stat, write_json, write_markdown
 from bench.experiments.trials import Trial, experiment_args, quiet_logs, runtime_config, trial_results
 from core.sim.scene import Box, random_scene
@@ -137,7 +137,7 @@ def trial(params: dict) -> dict:
     end = watch.count(rt) if watch.moved_t is not None else PhantomCount(0, 0, ())
     cleared = [dt for dt, n in watch.timeline if n == 0]
     return {
-        **run_metrics(rt.run_state, run_log, rt.world.collisions),
+        **run_metrics(rt.run_state, run_log, rt.world.collisions, rt.controller.counts),
         "moved": len(moved) if watch.moved_t is not None else 0,
         "moved_ids": [b.id for b in moved],
         "leg1_time_s": rt.sequencer.progress[0].elapsed_s,
@@ -180,7 +180,7 @@ def summarise(results: list[dict]) -> dict[str, float]:
             f"{kind}_leg2_first_plan_m_median": stat(rows, "leg2_first_plan_m"),
             f"{kind}_collision_free_rate": rate(rows, "collision_free"),
         }
-    return figures
+    return figures | solver_figures(results)
 
 
 def _pairwise(results: list[dict], key: str, kind: str) -> list[float]:

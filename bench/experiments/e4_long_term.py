@@ -36,7 +36,7 @@ import numpy as np
 
 from app.runtime import Runtime
 from app.snapshot import RunState
-from bench.experiments.measures import box_in_view, phantoms, run_metrics
+from bench.experiments.measures import box_in_view, phantoms, run_metrics, solver_figures
 from bench.experiments.report_files import draw_boxes, fmt, md_table, save_figure, write_json, write_markdown
 from bench.experiments.trials import Trial, experiment_args, quiet_logs, runtime_config, trial_results
 from core.sim.scene import PAPER_BOX_M, Box, Scene, aisle_scene
@@ -201,7 +201,8 @@ def trial(params: dict) -> dict:
     if len(laps.lap_end_t) < params["laps"]:
         laps._end_lap(rt)
     metrics = run_metrics(RunState.FINISHED if all(o["outcome"] == "done" for o in outcomes)
-                          and len(outcomes) == len(seq.subtasks) else RunState.FAILED, rt.log, rt.world.collisions)
+                          and len(outcomes) == len(seq.subtasks) else RunState.FAILED, rt.log, rt.world.collisions,
+                          rt.controller.counts)
     return {**metrics, "subtasks": len(seq.subtasks), "completed": sum(o["outcome"] == "done" for o in outcomes),
             "outcomes": outcomes, "per_lap": _per_lap(rt, laps, outcomes), "path_xy": _decimated_path(rt),
             "final_boxes": [[b.id, *b.position[:2], b.size[0], b.size[1], b.yaw] for b in rt.world.boxes()]}
@@ -243,7 +244,7 @@ def summarise(results: list[dict]) -> dict[str, float]:
             figures[f"{key}_lap{lap['lap']}_phantoms"] = float(lap["phantoms"])
             figures[f"{key}_lap{lap['lap']}_completed"] = float(lap["completed"])
             figures[f"{key}_lap{lap['lap']}_time_s"] = lap["time_s"]
-    return figures
+    return figures | solver_figures(results)
 
 
 def figures_png(results: list[dict], out_dir: Path) -> list[str]:

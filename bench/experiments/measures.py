@@ -1,6 +1,7 @@
 """What the experiments measure on a finished (or running) closed loop, from the simulator's ground truth.
 
-- `run_metrics`: outcome, collisions, clearance, time, path length, speed near obstacles of a run;
+- `run_metrics`: outcome, collisions, clearance, time, path length, speed near obstacles of a run, and the
+  controller's failures (`solver_metrics`, summed over trials by `solver_figures`);
 - `body_distance`: signed distance from one body group (base, arm, EE) to the nearest box (MuJoCo);
 - `collision_bodies`: which body groups touched a box;
 - `phantoms`: boxes taken away whose old place the map still holds as occupied;
@@ -17,6 +18,7 @@ import numpy as np
 
 from app.run_log import RunLog
 from app.snapshot import RunState
+from core.htmpc.htmpc import SolveCounts
 from core.sim.scene import Box
 from core.sim.world import CollisionEvent, SimWorld
 from core.types import DepthFrame
@@ -67,8 +69,44 @@ def collision_bodies(events: list[CollisionEvent]) -> dict[str, int]:
     return counts
 
 
-def run_metrics(run_state: RunState, log: RunLog, events: list[CollisionEvent]) -> dict[str, float | bool]:
-    """Figures of one run: finished, collision-free, clearance, time, path length, speeds."""
+def _approach_figures(rates: np.ndarray) -> dict[str, float]:
+    """Mean of the approach (receding counts as zero), its 90th percentile and maximum, near obstacles."""
+    if not len(rates):
+        return {"approach_speed_mps": math.nan, "approach_speed_p90_mps": math.nan, "approach_speed_max_mps": math.nan}
+    return {"approach_speed_mps": float(np.maximum(rates, 0.0).mean()),
+            "approach_speed_p90_mps": float(np.percentile(rates, 90)), "approach_speed_max_mps": float(rates.max())}
+
+
+def solver_metrics(counts: SolveCounts) -> dict[str, int]:
+    """The controller's failures during a run: QPs failed even in HPIPM's rescue mode (any level), stalled QPs
+    rescued, exceptions inside the solve, other braking fallbacks."""
+    return {"qp_failures": counts.qp_failures, "qp_level1_failures": counts.level1_qp_failures,
+            "qp_rescues": counts.qp_rescues, "controller_exceptions": counts.exceptions,
+            "controller_solves": counts.solves}
+
+
+def solver_figures(results: list[dict]) -> dict[str, float]:
+    """`solver_metrics` summed over the trials (trials without them count as none)."""
+    keys = ("qp_failures", "qp_level1_failures", "qp_rescues", "controller_exceptions", "controller_solves")
+    return {k: float(sum(r.get(k, 0) for r in results)) for k in keys}
+
+
+def approach_speeds(log: RunLog, near_m: float = NEAR_OBSTACLE_M) -> np.ndarray:
+    """How fast the clearance shrank (m/s, positive approaching) over each control period that began with the
+    clearance under `near_m`: −d/dt of the true robot–box distance, i.e. the velocity of the robot's closest
+    point projected on −∇EDF (the paper's approach velocity, Fig. 7b), not the robot's total speed."""
+    d, t = np.array(log.min_distance_m, float), np.array(log.t, float)
+    if len(d) < 2:
+        return np.zeros(0)
+    rate = -np.diff(d) / np.maximum(np.diff(t), 1e-9)
+    near = np.isfinite(d[:-1]) & np.isfinite(d[1:]) & (d[:-1] < near_m)
+    return rate[near]
+
+
+def run_metrics(run_state: RunState, log: RunLog, events: list[CollisionEvent],
+                counts: SolveCounts | None = None) -> dict[str, float | bool]:
+    """Figures of one run: finished, collision-free, clearance, time, path length, speeds, and with the
+    controller's `counts` its failures."""
     summary = log.summary()
     dist = np.array(log.min_distance_m, float)
     speed = np.array([math.hypot(v[0], v[1]) for v in log.v]) if log.v else np.zeros(0)
@@ -87,8 +125,10 @@ def run_metrics(run_state: RunState, log: RunLog, events: list[CollisionEvent]) 
         "path_length_m": summary["base_path_length_m"],
         "mean_speed_mps": summary["mean_base_speed_mps"],
         "speed_near_obstacles_mps": float(speed[near].mean()) if near.any() else math.nan,
+        **_approach_figures(approach_speeds(log)),
         "solve_ms_median": summary["solve_ms_median"],
         "fallback_steps": summary["fallback_steps"],
+        **(solver_metrics(counts) if counts is not None else {}),
     }
 
 

@@ -2,16 +2,19 @@
 
 Each control step solves, for the active subtask's task order [T_1 … T_L], a sequence of single-task
 MPCs: level l minimises J_l + J_aux subject to the dynamics, bounds, the collision rows from the EDF
-and |e_i| ≤ |e_i*| + tol for each earlier level i (7c). The nonlinear problem is handled by
+and |e_i| ≤ |e_i*| + tol for each earlier level i (7c), with a tolerance only where the plan is re-planned
+(not at node 1, which the robot executes) and the step checked on the exact errors (`_keep_priority`):
+so the order holds in closed loop, not only in one solve. The nonlinear problem is handled by
 Gauss-Newton SQP in real-time-iteration form: one structured QP (HPIPM) per level per step, around the
 previous solution shifted to now; right after a task switch, several iterations (until the plan stops
 moving, `sqp_step_tol`), each damped (`sqp_damping`) and bounded by an adaptive trust region.
 
 Public API: `HTMPC(robot, params).solve(state, refs, edf) -> Plan` (edf: anything with vectorised
 `distance(p)` and `gradient(p)`, e.g. `core.types.LocalEDF`, or None for no collision rows), `reset()`,
-and `enforce_timeout` (False in lockstep runs: simulated time waits for the solver). A failed QP, a
-non-finite state or map, a slow solve or an out-of-limit solution gives a braking plan along the last
-plan handed out (status FALLBACK or STOPPING, the reason in `message`; safety.py).
+and `enforce_timeout` (False in lockstep runs: simulated time waits for the solver). A failed QP, an
+exception of any type, a non-finite state or map, a slow solve or an out-of-limit solution gives a braking
+plan along the last plan handed out (status FALLBACK or STOPPING, the reason in `message`; safety.py);
+`counts` tallies them (`SolveCounts`).
 """
 
 from __future__ import annotations
@@ -22,17 +25,26 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from core.htmpc.collision_constraint import CollisionConstraint, CollisionRows, DistanceField
+from core.htmpc.box_barrier import BoxBarrier
+from core.htmpc.collision_constraint import (
+    CollisionConstraint,
+    CollisionRows,
+    DistanceField,
+    StepRows,
+    step_rows,
+)
 from core.htmpc.horizon_kinematics import HorizonKinematics, HorizonKinematicsEvaluator
 from core.htmpc.level_problem import (
     LexBound,
     add_lex_rows,
     base_arrays,
+    lex_limits,
+    lex_tolerances,
     linearised_errors,
     task_cost,
     variable_bounds,
 )
-from core.htmpc.ocp_qp import QPLayout, StructuredQP
+from core.htmpc.ocp_qp import NQ, QPLayout, StructuredQP
 from core.htmpc.safety import brake_along, braking_plan, plan_is_safe
 from core.htmpc.tasks import BaseTask, EEBaseFrameTask, EETask, Linearisation
 from core.params import HTMPCParams
@@ -58,6 +70,28 @@ class _Iterate:
     q: np.ndarray
     v: np.ndarray
     a: np.ndarray
+
+
+@dataclass
+class SolveCounts:
+    """What went wrong how often since the controller was made (experiments report these)."""
+
+    solves: int = 0
+    level1_qp_failures: int = 0
+    """Failed level-1 QPs: the step brakes (safety.py)."""
+    lower_level_qp_failures: int = 0
+    """Failed QPs of levels ≥ 2: the step hands out the level above's plan."""
+    qp_rescues: int = 0
+    """QPs that stalled and were solved again in HPIPM's rescue mode (`ocp_qp.RESCUE_MODE`)."""
+    exceptions: int = 0
+    timeouts: int = 0
+    other_fallbacks: int = 0
+    """Non-finite states, solutions outside the limits."""
+
+    @property
+    def qp_failures(self) -> int:
+        """QPs that failed even in the rescue mode, at any level."""
+        return self.level1_qp_failures + self.lower_level_qp_failures
 
 
 @dataclass
@@ -96,9 +130,13 @@ class HTMPC:
         self.ee_base_task = EEBaseFrameTask(p.Q_ee)
         """The EE task when the reference is in the base frame (`EEReference.frame == 'base'`)."""
         self.kinematics = HorizonKinematicsEvaluator(robot, p.N + 1)
-        self.collision = CollisionConstraint(robot.sphere_radii, p.delta_safe_m, p.gamma, p.constraint)
+        self._step_kinematics = HorizonKinematicsEvaluator(robot, 2)
+        """FK at the next control instant (`StepRows`), as a two-node horizon whose node 1 is that instant."""
+        boxes = BoxBarrier(robot.boxes, p.box_iterations)
+        self.collision = CollisionConstraint(robot.sphere_radii, p.delta_safe_m, p.gamma, p.constraint, boxes)
+        self.row_names = collision_row_names(robot, boxes)
         self._qps: dict[int, StructuredQP] = {}
-        self.slack_group = slack_groups(robot, p.slack_groups)
+        self.slack_group = slack_groups(self.row_names, p.slack_groups)
         for n_lex in PREBUILT_LEX_ROWS:  # 15–45 ms each: not inside the first control step
             self._qp(n_lex)
         self.trust = np.array([p.trust_region_m] * 2 + [p.trust_region_rad] * 7)
@@ -108,6 +146,7 @@ class HTMPC:
         self.last_step: StepResult | None = None
         self._last_plan: Plan | None = None
         """The plan handed out last: a fault brakes along it (safety.brake_along)."""
+        self.counts = SolveCounts()
         self.enforce_timeout = True
         """Live runs discard slow solves (`solve_timeout_ms`); lockstep runs turn this off to stay
         deterministic (simulated time does not advance while the solver works)."""
@@ -123,7 +162,7 @@ class HTMPC:
 
     def _qp(self, n_lex: int) -> StructuredQP:
         if n_lex not in self._qps:
-            layout = QPLayout(self.params.N, len(self.robot.spheres), n_lex, self.slack_group)
+            layout = QPLayout(self.params.N, self.collision.n_rows, n_lex, self.slack_group)
             self._qps[n_lex] = StructuredQP(layout, self.params.dt_s)
         return self._qps[n_lex]
 
@@ -165,34 +204,40 @@ class HTMPC:
         p = self.params
         kin = self.kinematics(it.q, it.v)
         lins = self._linearise(order, refs, it.q, kin)
-        rows: CollisionRows | None = self.collision.rows(it.q, kin, edf) if edf is not None else None
+        rows, step = self._collision_rows(x0, it, kin, edf) if edf is not None else (None, None)
         lim = self.robot.limits
         levels = [order] if p.hierarchy == "weighted" else [[name] for name in order]
         bounds: list[LexBound] = []
+        tol = lex_tolerances(p)
         best, level_ms, level_errors, solutions = None, [], [], []
         failed, message = None, ""
         guess = None
         for i, level in enumerate(levels):
             n_lex = sum(b.lin.e0.shape[1] for b in bounds)
             qp = self._qp(n_lex)
-            arrays = base_arrays(qp, p, it.q, rows, damping)
+            arrays = base_arrays(qp, p, it.q, rows, damping, step)
             for name in level:
                 task_cost(arrays, qp, lins[name], it.q, p)
-            add_lex_rows(arrays, qp, bounds, it.q, p.lex_tolerance)
+            add_lex_rows(arrays, qp, bounds, it.q, tol)
             lbx, ubx = variable_bounds(qp.layout, x0, lim.q_min, lim.q_max, lim.v_max, lim.a_max, p.dt_s,
                                        it.q, self._trust_now())
             if guess is None:  # level 1 starts from the linearisation point, level l from level l−1's optimum
                 guess = qp.layout.pack(it.q, it.v, it.a)
             sol = qp.solve(arrays.h, arrays.g, arrays.a, arrays.lba, arrays.uba, lbx, ubx, guess)
             level_ms.append(sol.solve_ms)
+            self.counts.qp_rescues += sol.rescued
             if not sol.success:
+                self.counts.level1_qp_failures += i == 0
+                self.counts.lower_level_qp_failures += i > 0
                 failed, message = i, f"level {i + 1} QP failed ({sol.status})"
                 log.warning(message)
                 break
-            q, v, a = qp.layout.states(sol.z)
-            best = (q, v, a, qp.layout.slacks(sol.z))
+            z = sol.z if not bounds else self._keep_priority(qp.layout, guess, sol.z, order[:len(bounds)], refs,
+                                                             tol)
+            q, v, a = qp.layout.states(z)
+            best = (q, v, a, qp.layout.slacks(z))
             solutions.append((q, v, a))
-            guess = sol.z
+            guess = z
             for name in level:
                 e = linearised_errors(lins[name], q, it.q)
                 level_errors.append(e)
@@ -204,15 +249,62 @@ class HTMPC:
         return StepResult(q, v, a, s, level_ms, level_errors, failed, message, kin, lins, it.q, min_h,
                           level_solutions=solutions)
 
+    def _collision_rows(self, x0: np.ndarray, it: _Iterate, kin: HorizonKinematics,
+                        edf: DistanceField) -> tuple[CollisionRows, StepRows]:
+        """The collision rows at nodes 1..N−1 and at the next control instant τ (`StepRows`, linearised on the
+        iterate's first interval), from one batch of EDF queries."""
+        N, tau = self.params.N, 1.0 / self.params.control_rate_hz
+        q_tau = it.q[0] + tau * it.v[0] + 0.5 * tau**2 * it.a[0]
+        v_tau = it.v[0] + tau * it.a[0]
+        q2, v2 = np.stack([q_tau, q_tau]), np.stack([v_tau, v_tau])
+        at_tau = self._step_kinematics(q2, v2)
+        rows = self.collision.rows_at(
+            np.vstack([it.q[1:N], q_tau]), np.vstack([it.v[1:N], v_tau]), np.concatenate([kin.P[1:N], at_tau.P[1:]]),
+            np.concatenate([kin.JP[1:N], at_tau.JP[1:]]), np.concatenate([kin.dvel_dq[1:N], at_tau.dvel_dq[1:]]), edf)
+        nodes = CollisionRows(rows.a_q[:-1], rows.a_v[:-1], rows.lb[:-1], rows.h[:-1])
+        last = CollisionRows(rows.a_q[-1:], rows.a_v[-1:], rows.lb[-1:], rows.h[-1:])
+        return nodes, step_rows(last, x0[:NQ], x0[NQ:], tau)
+
+    def _true_errors(self, q: np.ndarray, names: list[str], refs: References) -> np.ndarray:
+        """The exact (nonlinear) errors of tasks `names` at nodes 1..N of q, side by side (N, Σm)."""
+        kin = self.kinematics(q) if "ee" in names else None
+        errs = [self.tasks[n].compute_error(q, refs.base) if n == "base" else self.tasks[n].compute_error(kin, refs.ee)
+                for n in names]
+        return np.concatenate(errs, axis=1)[1:]
+
+    def _keep_priority(self, layout: QPLayout, z_prev: np.ndarray, z_new: np.ndarray, earlier: list[str],
+                       refs: References, tol: np.ndarray) -> np.ndarray:
+        """(7c) with the exact errors: the longest step from the previous level's solution toward this
+        level's (z_prev + α (z_new − z_prev), α halved from 1 to 1/8, else 0) that keeps every earlier task's
+        exact error within `lex_limits` of its exact error at the previous level's solution.
+
+        The QP bounds the Gauss-Newton model of the earlier errors; a lower level exploits the model's error
+        (at a stretched arm, 0.5 rad of arm motion that the model says keeps the EE in place moved it 0.7 m),
+        and in closed loop level 1 then settles far from its optimum. Every α is feasible for this level's QP:
+        both ends are, and its constraints are linear."""
+        if all(n == "base" for n in earlier):
+            return z_new  # the base errors are linear in q: the QP's bound is exact
+        e_ref = self._true_errors(layout.states(z_prev)[0], earlier, refs)
+        lo, hi = lex_limits(e_ref, tol)
+        step = z_new - z_prev
+        for alpha in (1.0, 0.5, 0.25, 0.125):
+            z = z_prev + alpha * step
+            e = self._true_errors(layout.states(z)[0], earlier, refs)
+            if np.all(e >= lo - 1e-9) and np.all(e <= hi + 1e-9):
+                return z
+        return z_prev
+
     # --- the control step --------------------------------------------------------------------------
 
     def solve(self, state: RobotState, refs: References, edf: DistanceField | None) -> Plan:
         """One control step: a plan from the measured state, or a braking plan if anything is wrong."""
         p = self.params
         t0 = time.perf_counter()
+        self.counts.solves += 1
         order = [name for name in refs.order if (refs.base if name == "base" else refs.ee) is not None]
         n = len(order)
         if not (np.all(np.isfinite(state.q)) and np.all(np.isfinite(state.v)) and np.isfinite(state.t)):
+            self.counts.other_fallbacks += 1
             return self._fallback(state, n, "non-finite robot state", PlanStatus.STOPPING)
         if not order:
             self._previous = None
@@ -235,15 +327,19 @@ class HTMPC:
                 it = _Iterate(state.t, step.q, step.v, step.a)
                 if converged:
                     break
-        except (ValueError, FloatingPointError, np.linalg.LinAlgError) as err:
-            return self._fallback(state, n, f"controller error: {err}")
+        except Exception as err:  # any fault inside the solve brakes the robot; a dead control loop does not
+            log.exception("HTMPC step raised")
+            self.counts.exceptions += 1
+            return self._fallback(state, n, f"controller error: {type(err).__name__}: {err}")
         elapsed = (time.perf_counter() - t0) * 1e3
         if step is None or step.failed_level == 0:
             return self._fallback(state, n, step.message if step else "no iteration")
         if self.enforce_timeout and elapsed > p.solve_timeout_ms:
+            self.counts.timeouts += 1
             return self._fallback(state, n, f"solve took {elapsed:.0f} ms > {p.solve_timeout_ms:.0f} ms")
         plan = self._plan(state, order, refs, step, tuple(level_ms))
         if not plan_is_safe(plan, self.robot.limits, tol=1e-4):
+            self.counts.other_fallbacks += 1
             return self._fallback(state, n, "solution outside the limits")
         self._previous = _Iterate(state.t, step.q, step.v, step.a)
         self.last_step = step
@@ -328,13 +424,21 @@ class HTMPC:
                     extras={"max_slack": max_slack, "levels": float(len(step.level_ms))})
 
 
-def slack_groups(robot: RobotModel, kind: str) -> np.ndarray:
-    """Slack index per sphere: 'sphere' (one each), 'body' (base/rack vs arm) or 'node' (one per node)."""
-    names = [s.name for s in robot.spheres]
+def collision_row_names(robot: RobotModel, boxes: BoxBarrier) -> list[str]:
+    """Names of a node's collision rows, in order: the spheres, then the base boxes' sides."""
+    return [s.name for s in robot.spheres] + boxes.names
+
+
+BASE_ROWS = ("mount", "base_body", "base_rack")
+"""Rows of the parts fixed to the base (prefixes of `collision_row_names`)."""
+
+
+def slack_groups(names: list[str], kind: str) -> np.ndarray:
+    """Slack index per collision row: 'sphere' (one each), 'body' (base vs arm) or 'node' (one per node)."""
     if kind == "sphere":
         return np.arange(len(names))
     if kind == "body":
-        return np.array([0 if n in ("base", "rack_low", "rack_high") else 1 for n in names])
+        return np.array([0 if n.startswith(BASE_ROWS) else 1 for n in names])
     if kind == "node":
         return np.zeros(len(names), int)
     raise ValueError(f"slack_groups must be 'sphere', 'body' or 'node', got {kind!r}")

@@ -16,9 +16,11 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from core.htmpc.box_barrier import BoxBarrier
 from core.htmpc.collision_constraint import DistanceField
 from core.htmpc.horizon_kinematics import HorizonKinematicsEvaluator
-from core.htmpc.htmpc import slack_groups
+from core.htmpc.htmpc import collision_row_names, slack_groups
+from core.htmpc.level_problem import lex_limits, lex_tolerances
 from core.params import HTMPCParams
 from core.robot.model import RobotModel
 from core.robot.symbolic_fk import SymbolicKinematics
@@ -67,7 +69,10 @@ class IpoptReference:
         self.tol = tol
         self.sym = SymbolicKinematics(robot)
         self.kin = HorizonKinematicsEvaluator(robot, self.params.N + 1)
-        self.groups = slack_groups(robot, self.params.slack_groups)
+        self.boxes = BoxBarrier(robot.boxes, self.params.box_iterations)
+        self.groups = slack_groups(collision_row_names(robot, self.boxes), self.params.slack_groups)
+        self.radii = np.concatenate([robot.sphere_radii, np.zeros(self.boxes.n_rows)])
+        """Per collision row: the spheres, then the base boxes' sides (points at the warm start's closest points)."""
         self._cache: dict[tuple, tuple] = {}
 
     # --- symbolic pieces --------------------------------------------------------------------------
@@ -88,7 +93,8 @@ class IpoptReference:
         return e
 
     def _build(self, levels: tuple[str, ...], has_rot: dict[str, bool], level: int, with_edf: bool):
-        p, N, M = self.params, self.params.N, len(self.robot.spheres)
+        p, N, M = self.params, self.params.N, len(self.radii)
+        R = self.boxes.n_rows
         ns = int(self.groups.max()) + 1
         X = ca.SX.sym("X", 18, N + 1)
         U = ca.SX.sym("U", 9, N)
@@ -98,8 +104,14 @@ class IpoptReference:
         dbar = ca.SX.sym("dbar", M, N - 1)
         grad = ca.SX.sym("grad", 3 * M, N - 1)
         Pbar = ca.SX.sym("Pbar", 3 * M, N - 1)
-        estar = {name: ca.SX.sym(f"estar_{name}", 6, N) for name in levels[:level]}
-        P_fn = ca.Function("P", [self.sym.q], [ca.vec(self.sym.sphere_centres())])
+        estar = {name: (ca.SX.sym(f"elo_{name}", 6, N), ca.SX.sym(f"ehi_{name}", 6, N)) for name in levels[:level]}
+        box_local = ca.SX.sym("box_local", 3 * R, N - 1)
+        local = ca.SX.sym("local", 3 * R)
+        q_sym = self.sym.q
+        c, s = ca.cos(q_sym[2]), ca.sin(q_sym[2])
+        box_pts = [ca.vertcat(q_sym[0] + c * local[3 * r] - s * local[3 * r + 1],
+                              q_sym[1] + s * local[3 * r] + c * local[3 * r + 1], local[3 * r + 2]) for r in range(R)]
+        P_fn = ca.Function("P", [q_sym, local], [ca.vertcat(ca.vec(self.sym.sphere_centres()), *box_pts)])
         dt = p.dt_s
         W = {"base": np.array(p.Q_base), "ee": np.array(p.Q_ee)}
 
@@ -127,10 +139,11 @@ class IpoptReference:
             for name in levels[:level]:
                 e = err(name, k)
                 m = e.shape[0]
-                g.append(e - estar[name][:m, k - 1])
+                lo, hi = estar[name]
+                g.append(e - hi[:m, k - 1])
                 lbg.append(-np.inf * np.ones(m))
                 ubg.append(np.zeros(m))
-                g.append(e + estar[name][:m, k - 1])
+                g.append(e - lo[:m, k - 1])
                 lbg.append(np.zeros(m))
                 ubg.append(np.inf * np.ones(m))
         for k in range(N):
@@ -145,12 +158,12 @@ class IpoptReference:
         if with_edf:
             for k in range(1, N):
                 q, v = X[:9, k], X[9:, k]
-                Pq = P_fn(q)
+                Pq = P_fn(q, box_local[:, k - 1])
                 JP = ca.jacobian(Pq, q)
                 for j in range(M):
                     gj = grad[3 * j:3 * j + 3, k - 1]
                     h = dbar[j, k - 1] + ca.dot(gj, Pq[3 * j:3 * j + 3] - Pbar[3 * j:3 * j + 3, k - 1]) \
-                        - self.robot.sphere_radii[j] - p.delta_safe_m
+                        - self.radii[j] - p.delta_safe_m
                     if p.constraint == "cbf":
                         hdot = ca.dot(gj, JP[3 * j:3 * j + 3, :] @ v)
                         g.append(hdot + p.gamma * h + S[self.groups[j], k - 1])
@@ -160,7 +173,8 @@ class IpoptReference:
                     ubg.append(np.inf * np.ones(1))
         z = ca.vertcat(ca.vec(X), ca.vec(U), ca.vec(S))
         par = ca.vertcat(x0, *[ca.vertcat(ca.vec(a), ca.vec(b)) for a, b in refs.values()], ca.vec(dbar),
-                         ca.vec(grad), ca.vec(Pbar), *[ca.vec(e) for e in estar.values()])
+                         ca.vec(grad), ca.vec(Pbar), ca.vec(box_local),
+                         *[ca.vertcat(ca.vec(lo), ca.vec(hi)) for lo, hi in estar.values()])
         g.insert(0, X[:, 0] - x0)
         lbg.insert(0, np.zeros(18))
         ubg.insert(0, np.zeros(18))
@@ -196,11 +210,13 @@ class IpoptReference:
                    "ee": refs.ee is not None and refs.ee.rotation is not None}
         ns = int(self.groups.max()) + 1
         kin = self.kin(q_guess)
-        M = len(self.robot.spheres)
+        M = len(self.radii)
         if edf is not None:
-            Pbar = kin.P[1:N]
+            local = self.boxes.local_points(q_guess[1:N], edf)
+            Pbar = np.concatenate([kin.P[1:N], self.boxes.points(q_guess[1:N], v_guess[1:N], edf).P], axis=1)
             dbar, grad = edf.distance(Pbar), edf.gradient(Pbar)
         else:
+            local = np.zeros((N - 1, self.boxes.n_rows, 3))
             Pbar, dbar, grad = np.zeros((N - 1, M, 3)), np.full((N - 1, M), 10.0), np.zeros((N - 1, M, 3))
         ref_par = []
         for name in order:
@@ -220,7 +236,7 @@ class IpoptReference:
         x0 = np.concatenate([state.q, self.robot.limits.clip_velocity(state.v)])
         z0 = np.concatenate([np.column_stack([q_guess, v_guess]).ravel(), a_guess.ravel(), np.zeros(ns * (N - 1))])
         lbz, ubz = self._bounds(x0, ns)
-        estars: list[np.ndarray] = []
+        estars: list[tuple[np.ndarray, np.ndarray]] = []
         costs, times, evals, objectives, compared_obj, violations = [], [], [], [], [], []
         tasks, compared_task = [], []
         levels = 1 if p.hierarchy == "weighted" else len(order)
@@ -231,8 +247,8 @@ class IpoptReference:
             if key not in self._cache:
                 self._cache[key] = self._build(order, has_rot, level, edf is not None)
             solver, errs, lbg, ubg, cost_fn, rows_fn = self._cache[key]
-            par = np.concatenate([x0, *ref_par, dbar.ravel(), grad.ravel(), Pbar.ravel(),
-                                  *[e.ravel(order="F") for e in estars]])
+            par = np.concatenate([x0, *ref_par, dbar.ravel(), grad.ravel(), Pbar.ravel(), local.ravel(),
+                                  *[np.concatenate([lo.ravel(order="F"), hi.ravel(order="F")]) for lo, hi in estars]])
             t0 = time.perf_counter()
             out = solver(x0=z, p=par, lbx=lbz, ubx=ubz, lbg=lbg, ubg=ubg)
             times.append((time.perf_counter() - t0) * 1e3)
@@ -252,7 +268,8 @@ class IpoptReference:
                 compared_task.append(float(task))
                 violations.append(violation)
             e_all = np.asarray(errs(z, par)).ravel().reshape(len(order), N, 6)
-            estars.append((np.abs(e_all[level]) + p.lex_tolerance).T)
+            lo, hi = lex_limits(e_all[level], lex_tolerances(p))
+            estars.append((lo.T, hi.T))
         n_x = 18 * (N + 1)
         X = z[:n_x].reshape(N + 1, 18)
         U = z[n_x:n_x + 9 * N].reshape(N, 9)

@@ -5,7 +5,7 @@ Level l minimises  J_l + J_aux  over the horizon, with
   J_aux = Σ_k dt · (½ Q_edot‖J v_k‖²_Q + ½ Q_x‖v_k‖² + ½ Q_u‖a_k‖²)   (8: conditioning only)
   slack = Σ (slack_linear · s + slack_quadratic · s²)
 subject to the dynamics, box bounds on q, v, a, the collision rows (eq. 10, softened) and, for every
-earlier level i, |e_i,k| ≤ |e_i,k*| + tolerance (7c, hard).
+earlier level i, |e_i,k| ≤ |e_i,k*| + tol_k (7c, hard).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.htmpc.collision_constraint import CollisionRows
+from core.htmpc.collision_constraint import CollisionRows, StepRows
 from core.htmpc.ocp_qp import NQ, QPLayout, StructuredQP
 from core.htmpc.tasks import Linearisation
 from core.params import HTMPCParams
@@ -54,9 +54,10 @@ def task_cost(arrays: LevelArrays, qp: StructuredQP, lin: Linearisation, q_bar: 
 
 
 def base_arrays(qp: StructuredQP, params: HTMPCParams, q_bar: np.ndarray, rows: CollisionRows | None,
-                damping: float | None = None) -> LevelArrays:
-    """Everything but the task costs and (7c): regularisation, slack costs, dynamics and collision rows.
-    `damping` is λ of ½ λ ‖q − q̄‖² (default `params.sqp_damping`)."""
+                damping: float | None = None, step: StepRows | None = None) -> LevelArrays:
+    """Everything but the task costs and (7c): regularisation, slack costs, dynamics and collision rows (at
+    nodes 1..N−1, and `step` in the first interval's acceleration). `damping` is λ of ½ λ ‖q − q̄‖² (default
+    `params.sqp_damping`)."""
     dt, L = params.dt_s, qp.layout
     h = np.zeros(qp.H_sp.nnz())
     g = np.zeros(L.nv)
@@ -74,7 +75,14 @@ def base_arrays(qp: StructuredQP, params: HTMPCParams, q_bar: np.ndarray, rows: 
     lba = np.zeros(L.na)
     uba = np.zeros(L.na)
     a[qp.A_col_s] = 1.0
+    a[qp.A_step_s] = 1.0
     uba[qp.row_col] = np.inf
+    uba[qp.row_step] = np.inf
+    if step is not None:
+        a[qp.A_step_a] = step.a_a
+        lba[qp.row_step] = step.lb
+    else:
+        lba[qp.row_step] = -np.inf
     if rows is not None:
         a[qp.A_col_q] = rows.a_q[: L.N - 1]
         a[qp.A_col_v] = rows.a_v[: L.N - 1]
@@ -84,18 +92,37 @@ def base_arrays(qp: StructuredQP, params: HTMPCParams, q_bar: np.ndarray, rows: 
     return LevelArrays(h, g, a, lba, uba)
 
 
+def lex_tolerances(params: HTMPCParams) -> np.ndarray:
+    """tol_k of (7c) for nodes 1..N, shape (N, 1): `lex_tolerance_first_node` at node 1, the one the robot
+    executes before the next step, and `lex_tolerance` on the rest of the plan, which is re-planned anyway.
+
+    A tolerance at node 1 leaks in closed loop: level 2 keeps level 1's error at |e_1*| + tol where level 1
+    alone would have moved on, the next step starts from there, and the error settles where level 1's own
+    one-node decrease equals tol (tol / (1 − ρ), 4.5 cm for the base with tol = 0.01, ρ ≈ 0.77)."""
+    tol = np.full((params.N, 1), params.lex_tolerance)
+    tol[0] = params.lex_tolerance_first_node
+    return tol
+
+
+def lex_limits(e_star: np.ndarray, tolerance: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds (lo, hi) of (7c) on an earlier task's error e: −(|e*| + tol) ≤ e ≤ |e*| + tol."""
+    bound = np.abs(e_star) + tolerance
+    return -bound, bound
+
+
 def add_lex_rows(arrays: LevelArrays, qp: StructuredQP, bounds: list[LexBound], q_bar: np.ndarray,
-                 tolerance: float) -> None:
-    """(7c): −(|e*| + tol) ≤ e0 + J (q − q̄) ≤ |e*| + tol for every earlier task, nodes 1..N."""
+                 tolerance: np.ndarray | float) -> None:
+    """(7c): lo ≤ e0 + J (q − q̄) ≤ hi (`lex_limits`) for every earlier task, nodes 1..N; `tolerance` is
+    a scalar or per node (N, 1) (`lex_tolerances`)."""
     if not bounds:
         return
     J = np.concatenate([b.lin.J[1:] for b in bounds], axis=1)  # (N, n_lex, 9)
     e0 = np.concatenate([b.lin.e0[1:] for b in bounds], axis=1)
-    slack = np.concatenate([np.abs(b.e_star) for b in bounds], axis=1) + tolerance
+    lo, hi = lex_limits(np.concatenate([b.e_star for b in bounds], axis=1), tolerance)
     offset = e0 - np.einsum("kmj,kj->km", J, q_bar[1:])
     arrays.a[qp.A_lex_q] = J
-    arrays.lba[qp.row_lex] = -slack - offset
-    arrays.uba[qp.row_lex] = slack - offset
+    arrays.lba[qp.row_lex] = lo - offset
+    arrays.uba[qp.row_lex] = hi - offset
 
 
 def linearised_errors(lin: Linearisation, q: np.ndarray, q_bar: np.ndarray) -> np.ndarray:
@@ -125,5 +152,4 @@ def variable_bounds(layout: QPLayout, x0: np.ndarray, q_min: np.ndarray, q_max: 
             lbx[L.s(k)], ubx[L.s(k)] = 0.0, np.inf
     lbx[L.q(0)] = ubx[L.q(0)] = x0[:NQ]
     lbx[L.v(0)] = ubx[L.v(0)] = x0[NQ:]
-    lbx[L.s(0)] = ubx[L.s(0)] = 0.0
     return lbx, ubx

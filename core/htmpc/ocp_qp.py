@@ -3,9 +3,10 @@
 Variables stage by stage: z = [x_0, u_0, x_1, u_1, …, x_N] with x_k = [q_k, v_k] (18) and
 u_k = [a_k (9 accelerations), s_k (M collision slacks)]. Rows in HPIPM's order: for each stage k the
 dynamics gap x_{k+1} = A x_k + B u_k, then the stage's own rows (collision rows with their slack,
-lexicographic rows (7c) of earlier levels); the terminal rows (7c at node N) come last. Stage 0 has
-no rows (x_0 is fixed by bounds), and the terminal node has no slack variables (HPIPM's casadi
-interface has no controls at stage N), so collision rows cover nodes 1…N−1.
+lexicographic rows (7c) of earlier levels); the terminal rows (7c at node N) come last. Stage 0's rows
+are the collision rows at the next control instant, on a_0 and s_0 only (x_0 is fixed by bounds); the
+terminal node has no slack variables (HPIPM's casadi interface has no controls at stage N), so the
+node collision rows cover nodes 1…N−1.
 
 Measured trap (FACTS.md): matrices must be passed with their sparse pattern, and the default 1e-8
 residual tolerances make HPIPM run into its iteration limit; 1e-6 converges in ~10 iterations.
@@ -27,6 +28,12 @@ HPIPM_OPTIONS = {"mode": "speed_abs", "res_g_max": 1e-6, "res_b_max": 1e-6, "res
                  "iter_max": 60, "warm_start": 1}
 """`warm_start` 1: the interior point starts from the primal guess (the linearisation point, or the previous
 level's solution): 7 instead of 12 iterations on a closed-loop run, same costs."""
+RESCUE_MODE = "balance"
+"""HPIPM's mode for a second attempt when a solve in `speed_abs` stalls (status 1, iteration limit, or 2,
+minimum step). Every stalled QP of the closed-loop runs and experiments (a primal guess on the boundary of a
+narrow feasible set: the previous level's optimum against its (7c) rows, a warm start at a velocity limit)
+solved in 10–15 iterations in 'balance' (and in 'robust'); a cold start in 'speed_abs' rescued some of them,
+more iterations none. 'balance' is not the default: it costs more per iteration."""
 
 
 @dataclass(frozen=True)
@@ -36,6 +43,8 @@ class QPSolution:
     status: str
     iterations: int
     solve_ms: float
+    rescued: bool = False
+    """The first solve stalled and this is the second attempt's (`RESCUE_MODE`)."""
 
 
 class QPLayout:
@@ -50,7 +59,7 @@ class QPLayout:
         self.off_x = np.array([k * (NX + self.nu) for k in range(N + 1)])
         self.off_u = self.off_x[:N] + NX
         self.nv = N * (NX + self.nu) + NX
-        self.ng = [0] + [n_spheres + n_lex] * (N - 1) + [n_lex]
+        self.ng = [n_spheres] + [n_spheres + n_lex] * (N - 1) + [n_lex]
         row = 0
         self.row_gap, self.row_con = [], []
         for k in range(N):
@@ -115,6 +124,9 @@ def _pattern(layout: QPLayout) -> tuple[np.ndarray, np.ndarray]:
         A[r:r + NQ, L.a(k)] = eye
         A[r + NQ:r + NX, L.a(k)] = eye
         A[r:r + NX, L.off_x[k + 1]:L.off_x[k + 1] + NX] = np.eye(NX, dtype=bool)
+    r = L.row_con[0]
+    A[r:r + L.M, L.a(0)] = True
+    A[r + np.arange(L.M), L.s(0).start + L.slack_group] = True
     for k in range(1, L.N):
         r = L.row_con[k]
         A[r:r + L.M, L.q(k)] = True
@@ -149,6 +161,8 @@ class StructuredQP:
         opts = {"N": L.N, "nx": [NX] * (L.N + 1), "nu": [L.nu] * L.N + [0], "ng": L.ng,
                 "hpipm": dict(HPIPM_OPTIONS), "error_on_fail": False}
         self.solver = ca.conic("htmpc_qp", "hpipm", {"h": self.H_sp, "a": self.A_sp}, opts)
+        self._opts = opts
+        self._rescue: ca.Function | None = None
         self.A_dynamics_nz = self._dynamics_nz()
         self.H_qq = np.stack([self.H_pos[L.q(k), L.q(k)] for k in range(L.N + 1)])
         self.H_vv = np.stack([self.H_pos[L.v(k), L.v(k)] for k in range(L.N + 1)])
@@ -161,6 +175,11 @@ class StructuredQP:
                                  for k in inner])
         self.A_lex_q = np.stack([self.A_pos[self.lex_rows(k), L.q(k)] for k in range(1, L.N + 1)])
         self.row_col = np.stack([L.row_con[k] + np.arange(L.M) for k in inner])
+        step = L.row_con[0] + np.arange(L.M)
+        self.A_step_a = self.A_pos[step[:, None], np.arange(L.a(0).start, L.a(0).stop)[None, :]]
+        self.A_step_s = self.A_pos[step, L.s(0).start + L.slack_group]
+        self.row_step = step
+        """Stage 0's rows: the collision rows at the next control instant, in a_0 (and their slack s_0)."""
         self.row_lex = np.stack([self.lex_rows(k) for k in range(1, L.N + 1)])
 
     def lex_rows(self, k: int) -> np.ndarray:
@@ -199,13 +218,27 @@ class StructuredQP:
                 "uba": uba, "lbx": lbx, "ubx": ubx}
         if guess is not None:
             args["x0"] = guess
+        z, ok, status, iters = self._call(self.solver, args)
+        if not ok and status in ("1", "2"):  # stalled: iteration limit or minimum step (`RESCUE_MODE`)
+            z, ok, again, more = self._call(self._rescue_solver(), args)
+            status, iters = f"{status}, {RESCUE_MODE} {again}", iters + more
+            return QPSolution(z, ok, status, iters, (time.perf_counter() - t0) * 1e3, rescued=True)
+        return QPSolution(z, ok, status, iters, (time.perf_counter() - t0) * 1e3)
+
+    def _rescue_solver(self) -> ca.Function:
+        """The same QP in HPIPM's `RESCUE_MODE`, built on first need (tens of ms, rare)."""
+        if self._rescue is None:
+            opts = dict(self._opts, hpipm=dict(self._opts["hpipm"], mode=RESCUE_MODE))
+            self._rescue = ca.conic("htmpc_qp_rescue", "hpipm", {"h": self.H_sp, "a": self.A_sp}, opts)
+        return self._rescue
+
+    def _call(self, solver: ca.Function, args: dict) -> tuple[np.ndarray, bool, str, int]:
+        """One HPIPM call: (z, success, HPIPM's status, iterations)."""
         try:
-            out = self.solver(**args)
+            out = solver(**args)
         except RuntimeError as err:  # casadi raises on malformed input
-            return QPSolution(np.full(self.layout.nv, np.nan), False, f"solver error: {err}", 0,
-                              (time.perf_counter() - t0) * 1e3)
-        stats = self.solver.stats()
+            return np.full(self.layout.nv, np.nan), False, f"solver error: {err}", 0
+        stats = solver.stats()
         z = out["x"].full().ravel()
         ok = bool(stats.get("success", False)) and bool(np.all(np.isfinite(z)))
-        return QPSolution(z, ok, str(stats.get("return_status", "")), int(stats.get("iter_count", -1)),
-                          (time.perf_counter() - t0) * 1e3)
+        return z, ok, str(stats.get("return_status", "")), int(stats.get("iter_count", -1))

@@ -1,12 +1,10 @@
 """Robot self-filter: drop the points the cameras see of the robot's own body.
 
 The body is the union of the collision spheres (centre P_j(q), radius r_j) of `RobotModel`, grown
-by a margin, and of the base's box (`RobotParams.base_size_m`, from the floor up, in the base frame
-x, y, yaw = q[:3]). The spheres are conservative where they reach (anything inside them is the robot
-or a collision the controller must already prevent), but the 0.55 m base sphere leaves the corners
-and top edges of the 0.96 × 0.79 m base out: seen by the hand camera looking down, they became
-objects at the robot's own base in 10 of 60 random configurations. Nor do the spheres cover the arm's
-mount and shoulder (`LINK_SPHERES` does, for the filter only).
+by a margin, and of the base's collision boxes (`RobotModel.boxes`: body and rack, in the base frame
+x, y, yaw = q[:3]; the body from the floor up, its wheels). The spheres are conservative where they
+reach (anything inside them is the robot or a collision the controller must already prevent).
+`LINK_SPHERES` add the arm's mount and shoulder joints for the filter (margin for their motors).
 """
 
 from __future__ import annotations
@@ -28,9 +26,10 @@ class SelfFilter:
     def __init__(self, robot: RobotModel, margin_m: float = 0.0, base_margin_m: float = 0.03) -> None:
         self.robot = robot
         self.radii = np.concatenate([robot.sphere_radii, [r for _, r in LINK_SPHERES]]) + margin_m
-        lx, ly, lz = robot.params.base_size_m
-        self.base_half = np.array([lx / 2, ly / 2]) + base_margin_m
-        self.base_top = lz + base_margin_m
+        self.box_lo = np.array([b.lo for b in robot.boxes]) - base_margin_m
+        self.box_hi = np.array([b.hi for b in robot.boxes]) + base_margin_m
+        on_floor = self.box_lo[:, 2] <= robot.params.base_clearance_m  # the body: its wheels below it too
+        self.box_lo[on_floor, 2] = -np.inf
 
     def spheres(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Centres (M×3) and grown radii (M,) at q: the collision spheres and `LINK_SPHERES`."""
@@ -39,9 +38,9 @@ class SelfFilter:
         return np.concatenate([self.robot.sphere_centres(q), links]), self.radii
 
     def body(self, q: np.ndarray) -> RobotBody:
-        """The robot's body at q: its spheres and its base box."""
+        """The robot's body at q: its spheres and its base boxes."""
         centres, radii = self.spheres(q)
-        return RobotBody(centres, radii, np.asarray(q[:3], dtype=float), self.base_half, self.base_top)
+        return RobotBody(centres, radii, np.asarray(q[:3], dtype=float), self.box_lo, self.box_hi)
 
     def outside(self, points: np.ndarray, q: np.ndarray) -> np.ndarray:
         """Mask of the points (N×3) that lie outside the robot's body at q."""
@@ -50,23 +49,25 @@ class SelfFilter:
 
 @dataclass(frozen=True)
 class RobotBody:
-    """Collision spheres (centres M×3, radii M) and the base box (pose x, y, yaw; half sides; top height)."""
+    """Collision spheres (centres M×3, radii M) and the base's boxes (pose x, y, yaw; corners lo, hi (B×3) in
+    the base frame)."""
 
     centres: np.ndarray
     radii: np.ndarray
     base_pose: np.ndarray
-    base_half: np.ndarray
-    base_top: float
+    box_lo: np.ndarray
+    box_hi: np.ndarray
 
     def outside(self, points: np.ndarray) -> np.ndarray:
-        """Mask of the points (N×3) outside every sphere and outside the base box."""
+        """Mask of the points (N×3) outside every sphere and outside the base's boxes."""
         keep = outside_spheres(points, self.centres, self.radii)
         x, y, yaw = self.base_pose
         c, s = np.cos(yaw), np.sin(yaw)
         dx, dy = points[:, 0] - x, points[:, 1] - y
-        in_base = ((np.abs(c * dx + s * dy) <= self.base_half[0]) & (np.abs(-s * dx + c * dy) <= self.base_half[1])
-                   & (points[:, 2] <= self.base_top))
-        return keep & ~in_base
+        local = np.column_stack([c * dx + s * dy, -s * dx + c * dy, points[:, 2]])
+        for lo, hi in zip(self.box_lo, self.box_hi, strict=True):
+            keep &= ~np.all((local >= lo) & (local <= hi), axis=1)
+        return keep
 
 
 def outside_spheres(points: np.ndarray, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:

@@ -1,5 +1,12 @@
-"""Collision spheres covering base and arm (METHOD.md: base 0.55, rack 2 × 0.5, upper arm 4 × 0.15,
-forearm 3 × 0.15, wrists 0.15–0.2, tool 0.15). One table; both FK flavours read it."""
+"""Collision spheres covering the arm (METHOD.md: upper arm 4 × 0.15, forearm 3 × 0.15, wrists 0.15–0.2,
+tool 0.15). One table; both FK flavours read it. The base and its rack are boxes (`collision_boxes.py`).
+
+The paper's table leaves parts of the UR10's collision meshes outside every sphere: its upper-arm
+spheres sit on the link axis while the mesh's shoulder housing reaches 0.135 m to one side (5.5 cm out),
+and nothing covered the shoulder (8 cm out) or the mount's edge (1 cm). Here the upper-arm spheres follow
+the housing (y = −0.05) and the mount and shoulder have their own; `core/sim/collision_cover.py`
+samples every MuJoCo collision geometry's surface against the union of spheres and boxes.
+"""
 
 from __future__ import annotations
 
@@ -17,13 +24,12 @@ class CollisionSphere:
 
 
 SPHERES: tuple[CollisionSphere, ...] = (
-    CollisionSphere("base", "mobile_base", (0.0, 0.0, 0.25), 0.55),
-    CollisionSphere("rack_low", "mobile_base", (-0.2, 0.0, 0.55), 0.5),
-    CollisionSphere("rack_high", "mobile_base", (-0.2, 0.0, 0.95), 0.5),
-    CollisionSphere("upper_arm_0", "upper_arm_link", (0.0, 0.0, 0.08), 0.15),
-    CollisionSphere("upper_arm_1", "upper_arm_link", (0.0, 0.0, 0.25), 0.15),
-    CollisionSphere("upper_arm_2", "upper_arm_link", (0.0, 0.0, 0.42), 0.15),
-    CollisionSphere("upper_arm_3", "upper_arm_link", (0.0, 0.0, 0.59), 0.15),
+    CollisionSphere("mount", "mobile_base", (0.27, 0.0, 0.67), 0.11),
+    CollisionSphere("shoulder", "shoulder_link", (0.0, 0.0, 0.0), 0.15),
+    CollisionSphere("upper_arm_0", "upper_arm_link", (0.0, -0.05, 0.03), 0.15),
+    CollisionSphere("upper_arm_1", "upper_arm_link", (0.0, -0.05, 0.203), 0.15),
+    CollisionSphere("upper_arm_2", "upper_arm_link", (0.0, -0.05, 0.377), 0.15),
+    CollisionSphere("upper_arm_3", "upper_arm_link", (0.0, -0.05, 0.55), 0.15),
     CollisionSphere("forearm_0", "forearm_link", (0.0, 0.0, 0.05), 0.15),
     CollisionSphere("forearm_1", "forearm_link", (0.0, 0.0, 0.27), 0.15),
     CollisionSphere("forearm_2", "forearm_link", (0.0, 0.0, 0.49), 0.15),
@@ -32,4 +38,4 @@ SPHERES: tuple[CollisionSphere, ...] = (
     CollisionSphere("wrist_3", "wrist_3_link", (0.0, 0.0, 0.0), 0.2),
     CollisionSphere("tool", "ee", (0.1, 0.0, 0.0), 0.15),
 )
-"""The 14 spheres; `link` names a frame of `RobotModel` ('mobile_base' is the frame after the yaw joint)."""
+"""The 13 spheres; `link` names a frame of `RobotModel` ('mobile_base' is the frame after the yaw joint)."""

@@ -14,6 +14,7 @@ import numpy as np
 import pinocchio as pin
 
 from core.params import RobotParams
+from core.robot.collision_boxes import CollisionBox, base_boxes
 from core.robot.collision_spheres import SPHERES, CollisionSphere
 from core.robot.limits import JointLimits
 from core.robot.ur10_assets import ARM_LINKS, ur10_urdf
@@ -103,6 +104,7 @@ class RobotModel:
             raise RuntimeError(f"expected 9 joints, the URDF gave {self.model.nq}")
         self.limits = _limits(self.model, self.params)
         self.spheres: tuple[CollisionSphere, ...] = SPHERES
+        self.boxes: tuple[CollisionBox, ...] = base_boxes(self.params)
         self.cameras: tuple[CameraMount, ...] = CAMERAS
 
     @cached_property

@@ -42,11 +42,9 @@ def _add_robot(spec: mujoco.MjSpec, robot: RobotModel) -> None:
         base.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis, armature=1.0)
     base.add_joint(name="base_yaw", type=mujoco.mjtJoint.mjJNT_HINGE, axis=(0, 0, 1), armature=1.0)
     bodies[model.getJointId("base_yaw")] = base
-    lx, ly, lz = robot.params.base_size_m
-    base.add_geom(name="base_body", type=mujoco.mjtGeom.mjGEOM_BOX, size=(lx / 2, ly / 2, lz / 2 - 0.04),
-                  pos=(0, 0, lz / 2 + 0.04), rgba=_BASE_RGBA, mass=135.0, contype=ROBOT_CONTYPE, conaffinity=0)
-    base.add_geom(name="base_rack", type=mujoco.mjtGeom.mjGEOM_BOX, size=(0.2, 0.25, 0.3),
-                  pos=(-0.25, 0, lz + 0.3), rgba=_BASE_RGBA, mass=10.0, contype=ROBOT_CONTYPE, conaffinity=0)
+    for box, mass in zip(robot.boxes, (135.0, 10.0), strict=True):  # the body, then the rack
+        base.add_geom(name=box.name, type=mujoco.mjtGeom.mjGEOM_BOX, size=box.half_m, pos=box.centre_m,
+                      rgba=_BASE_RGBA, mass=mass, contype=ROBOT_CONTYPE, conaffinity=0)
     for j in range(model.getJointId("base_yaw") + 1, model.njoints):
         placement = model.jointPlacements[j]
         body = bodies[model.parents[j]].add_body(name=model.names[j].removesuffix("_joint") + "_body",

@@ -32,7 +32,8 @@ def one(sub) -> TaskSequence:
 
 
 def test_envelope_numbers(env):
-    assert env.base_clearance_m == pytest.approx(0.80)  # base sphere 0.55 + delta_safe 0.25
+    assert env.base_clearance_m == pytest.approx(0.80)  # the planner's inflation
+    assert env.base_top_m == pytest.approx(0.92 + 0.25)  # the rack's top + delta_safe
     assert env.shoulder_m == pytest.approx([0.27, 0.0, 0.78], abs=0.01)
     assert 1.15 < env.reach_m < 1.3 and env.wrist_reach_m < env.reach_m
     assert {name for name, _, _ in env.hand} == {"wrist_3", "tool"}
@@ -129,7 +130,7 @@ def test_base_frame_targets_reach_and_self_collision(env):
     far = EESubtask(target=EEPose(position=(2.0, 0.0, 0.9), frame="base"))
     (f,) = check_sequence(one(far), [BOX], env)
     assert f.rule == Rule.REACH and "base frame" in f.message
-    into_base = EESubtask(target=EEPose(position=(0.3, -0.3, 0.5), frame="base"))
+    into_base = EESubtask(target=EEPose(position=(0.3, -0.3, 0.35), frame="base"))  # 3 cm above the body
     (g,) = check_sequence(one(into_base), [], env)
     assert g.rule == Rule.SELF_COLLISION
     assert not check_sequence(one(EESubtask(target=EEPose(position=g.nearest, frame="base"))), [], env)

@@ -54,3 +54,14 @@ def test_collisions_split_into_base_and_arm():
               CollisionEvent(t=0.002, box_id="a", robot_geom="geom_forearm_link", depth_m=0.02),
               CollisionEvent(t=0.004, box_id="b", robot_geom="base_rack", depth_m=0.0)]
     assert collision_bodies(events) == {"base": 2, "arm": 1}
+
+
+def test_approach_speed_is_how_fast_the_clearance_shrinks_not_the_speed():
+    from app.run_log import RunLog
+    from bench.experiments.measures import approach_speeds
+
+    log = RunLog()
+    log.t = [0.0, 0.1, 0.2, 0.3, 0.4, 0.5]
+    log.min_distance_m = [0.9, 0.5, 0.45, 0.45, 0.5, 2.0]  # approaches, then drives past, then leaves
+    rates = approach_speeds(log, near_m=0.6)
+    np.testing.assert_allclose(rates, [0.5, 0.0, -0.5, -15.0])

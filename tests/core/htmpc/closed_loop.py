@@ -11,7 +11,7 @@ from core.htmpc import HTMPC
 from core.sim.ground_truth import ground_truth_edf
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
-from core.types import Plan, References
+from core.types import Plan, References, RobotState
 
 
 @dataclass
@@ -25,8 +25,9 @@ class LoopLog:
 
 
 def run(world: SimWorld, controller: HTMPC, refs: References | Callable[[float], References], seconds: float,
-        use_edf: bool = True) -> LoopLog:
-    """Drive the world for `seconds`; the EDF is the simulator's exact one around the robot."""
+        use_edf: bool = True, before_control: Callable[[SimWorld, RobotState], None] | None = None) -> LoopLog:
+    """Drive the world for `seconds`; the EDF is the simulator's exact one around the robot.
+    `before_control(world, state)` runs before every control step (a test's scene edits)."""
     controller.enforce_timeout = False  # lockstep: simulated time waits for the solver
     sim = SimRobot(world, cameras=())
     log = LoopLog()
@@ -35,6 +36,8 @@ def run(world: SimWorld, controller: HTMPC, refs: References | Callable[[float],
     for k in range(steps):
         state = sim.observe().state
         if k % 10 == 0:
+            if before_control is not None:
+                before_control(world, state)
             edf = ground_truth_edf(world.obstacles(), state.q[:2]) if use_edf else None
             r = refs(state.t) if callable(refs) else refs
             if k > 0 and not callable(refs):

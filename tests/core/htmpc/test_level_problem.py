@@ -4,7 +4,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from core.htmpc.level_problem import LexBound, add_lex_rows, base_arrays, task_cost
+from core.htmpc.level_problem import LexBound, add_lex_rows, base_arrays, lex_limits, lex_tolerances, task_cost
 from core.htmpc.ocp_qp import QPLayout, StructuredQP
 from core.htmpc.tasks import Linearisation
 from core.params import HTMPCParams
@@ -56,3 +56,11 @@ def test_lexicographic_rows_7c(qp):
         # −0.06 ≤ 0.2 − (x − 0.5) ≤ 0.06   ⇔   −x ∈ [−0.76, −0.64]
         assert arrays.lba[row] == pytest.approx(-0.06 - 0.7)
         assert arrays.uba[row] == pytest.approx(0.06 - 0.7)
+
+
+def test_lex_tolerance_is_tight_on_the_executed_node():
+    p = HTMPCParams(N=4, lex_tolerance=0.01, lex_tolerance_first_node=1e-4)
+    np.testing.assert_allclose(lex_tolerances(p)[:, 0], [1e-4, 0.01, 0.01, 0.01])
+    lo, hi = lex_limits(np.array([[0.2, -0.3, 0.0]]), lex_tolerances(p)[:1])
+    np.testing.assert_allclose(lo, [[-0.2001, -0.3001, -1e-4]])
+    np.testing.assert_allclose(hi, [[0.2001, 0.3001, 1e-4]])

@@ -49,6 +49,29 @@ def test_broken_map_makes_the_qp_fail_and_the_robot_brake(robot):
     assert_commands_safe(robot, plan)
 
 
+class RaisingMap:
+    """A map whose queries raise: a fault of any type inside the solve."""
+
+    def __init__(self, error: Exception) -> None:
+        self.error = error
+
+    def distance(self, p):
+        raise self.error
+
+    def gradient(self, p):
+        raise self.error
+
+
+@pytest.mark.parametrize("error", [RuntimeError("driver died"), KeyError("voxel"), AssertionError("broken")])
+def test_any_exception_in_the_solve_brakes(robot, error):
+    c = lockstep(HTMPC(robot))
+    state = moving_state(robot)
+    plan = c.solve(state, DRIVE, RaisingMap(error))
+    assert plan.status == PlanStatus.FALLBACK and type(error).__name__ in plan.message
+    assert_brakes(robot, plan, state)
+    assert_commands_safe(robot, plan)
+
+
 def test_nan_state_stops(robot):
     c = lockstep(HTMPC(robot))
     q = READY_Q.copy()

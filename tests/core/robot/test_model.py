@@ -22,16 +22,21 @@ def test_limits_follow_method(robot):
     np.testing.assert_allclose(clipped, [1.0, -1.0, 0.0, 0, 0, 0, 0, 0, 3.2])
 
 
-def test_sphere_table_matches_method(robot):
+def test_collision_geometry_table(robot):
+    """METHOD.md's arm spheres (upper arm 4 × 0.15, forearm 3 × 0.15, wrists 0.15–0.2, tool 0.15), the mount and
+    shoulder, and the base as its two boxes (the MuJoCo body and rack: `core/sim/collision_cover.py`)."""
     radii = {s.name: s.radius_m for s in SPHERES}
-    assert radii["base"] == 0.55
-    assert [s.radius_m for s in SPHERES if s.name.startswith("rack")] == [0.5, 0.5]
     assert [s.radius_m for s in SPHERES if s.name.startswith("upper_arm")] == [0.15] * 4
     assert [s.radius_m for s in SPHERES if s.name.startswith("forearm")] == [0.15] * 3
     assert all(0.15 <= r <= 0.2 for n, r in radii.items() if n.startswith("wrist"))
     assert radii["tool"] == 0.15
     centres = robot.sphere_centres(READY_Q)
-    assert centres.shape == (14, 3) and robot.sphere_radii.shape == (14,)
+    assert centres.shape == (13, 3) and robot.sphere_radii.shape == (13,)
+    body, rack = robot.boxes
+    np.testing.assert_allclose(body.hi - body.lo, [0.96, 0.79, 0.24])
+    np.testing.assert_allclose(body.lo[2], 0.08)
+    np.testing.assert_allclose(rack.hi - rack.lo, [0.4, 0.5, 0.6])
+    np.testing.assert_allclose(rack.lo[2], body.hi[2])  # the rack stands on the top plate
 
 
 def test_base_moves_whole_robot(robot):
