@@ -40,7 +40,7 @@ from bench.report import bench_args, write_result
 from core.mapping import ObjectMapper, VoxelMap
 from core.mapping.scene_points import ScenePoints
 from core.mapping.segmentation import connected_voxels, voxelise
-from core.params import CameraParams, MappingParams, SimParams
+from core.params import CameraParams, MappingParams, SensorParams, SimParams
 from core.robot.model import READY_Q, RobotModel
 from core.sim.depth_camera import DepthCamera
 from core.sim.ground_truth import box_signed_distance, ground_truth_edf
@@ -51,6 +51,7 @@ from core.types import Observation
 
 NOISE_STD_M = 0.005
 """Depth noise for every run here: std = 0.005 · z² (2 cm at 2 m)."""
+NOISE_ONLY = replace(SensorParams.ideal(), depth_noise_m=NOISE_STD_M)
 STAGES = ("points", "segmentation", "association", "registration", "consistency")
 
 
@@ -76,8 +77,7 @@ def sway(k: int, amplitude_rad: float = 0.5, period_s: float = 8.0) -> np.ndarra
 
 
 def _sim(scene: Scene, robot: RobotModel, seed: int = 0) -> SimRobot:
-    cam = CameraParams(noise_std_m=NOISE_STD_M)
-    world = SimWorld(robot, SimParams(hand_camera=cam, base_camera=cam), scene)
+    world = SimWorld(robot, SimParams(sensor=NOISE_ONLY), scene)
     world.set_robot(READY_Q)
     return SimRobot(world, seed=seed)
 
@@ -241,8 +241,8 @@ def aisle(robot: RobotModel, params: MappingParams, laps: float) -> dict[str, fl
     """Drive the aisle's corridor at 0.5 m/s (both cameras at 10 Hz): ms per tick and EDF, removals, EDF errors."""
     scene = aisle_scene()
     world = SimWorld(robot, SimParams(), scene)
-    cam = CameraParams(noise_std_m=NOISE_STD_M)
-    cams = [DepthCamera(world, name, cam, seed=i) for i, name in enumerate(("hand", "base"))]
+    cams = [DepthCamera(world, name, CameraParams(), seed=i, sensor=NOISE_ONLY)
+            for i, name in enumerate(("hand", "base"))]
     mapper = ObjectMapper(robot, params)
     cpu, edf_ms, errors = [], [], []
     for k, (x, y, yaw) in enumerate(aisle_path(0.05, laps)):

@@ -51,9 +51,41 @@ class CameraParams:
     fovy_deg: float = 58.0
     range_m: float = 3.0
     near_m: float = 0.1
-    noise_std_m: float = 0.0
-    """Std of additive Gaussian depth noise, scaled by depth² (stereo-like) at 1 m."""
     rate_hz: float = 10.0
+
+
+@dataclass(frozen=True)
+class SensorParams:
+    """The sensor model: what makes the simulated robot perceive its world as a real one does.
+
+    `SensorParams()` is on (the studio, the bridge's simulated driver and the experiments' perceived
+    runs); `SensorParams.ideal()` is exact sensing (the ground-truth map, geometry tests). Each effect is
+    measured on rendered frames in `tests/core/sim/test_sensor_model.py`. Defaults are those of a
+    stereo depth camera (RealSense D435-like) and the wheel odometry of an omnidirectional base.
+    """
+
+    depth_noise_m: float = 0.005
+    """Depth std at 1 m; std = depth_noise_m · z² (stereo: σ_z = z² σ_disparity / (f b); the D435 at
+    f = 380 px, b = 5 cm, 0.08 px subpixel gives 0.0042)."""
+    dropout_fraction: float = 0.02
+    """Pixels that return nothing at random (speckle on low-texture patches)."""
+    flying_pixel_fraction: float = 0.5
+    """Pixels next to a depth edge that read a depth between the two sides (mixed pixels)."""
+    flying_pixel_jump_m: float = 0.1
+    """A depth step larger than this between neighbouring pixels is an edge."""
+    odometry_drift_m: float = 0.01
+    """Random walk of the base position estimate: std per axis after 1 m driven grows as √distance (m/√m)."""
+    odometry_drift_rad: float = 0.01
+    """Random walk of the heading estimate: std after 1 rad turned grows as √angle (rad/√rad)."""
+    camera_time_offset_s: float = 0.02
+    """A frame is stamped this long after it was taken (driver latency not compensated): its pose is the
+    robot's estimate at the stamp, and it arrives then."""
+
+    @classmethod
+    def ideal(cls) -> SensorParams:
+        """Exact depth and odometry, frames stamped when taken."""
+        return cls(depth_noise_m=0.0, dropout_fraction=0.0, flying_pixel_fraction=0.0, odometry_drift_m=0.0,
+                   odometry_drift_rad=0.0, camera_time_offset_s=0.0)
 
 
 @dataclass(frozen=True)
@@ -66,8 +98,8 @@ class SimParams:
     room_half_size_m: float = 6.0
     hand_camera: CameraParams = field(default_factory=CameraParams)
     base_camera: CameraParams = field(default_factory=CameraParams)
-    odometry_noise_std_m: float = 0.0
-    odometry_noise_std_rad: float = 0.0
+    sensor: SensorParams = field(default_factory=SensorParams)
+    """The sensor model of the simulated robot (`SimRobot`); on by default, a simulated robot is a real one."""
     box_pool: int = 32
     """Boxes pre-allocated as hidden mocap bodies; adding beyond the pool recompiles (grows it ×2)."""
     distance_margin_m: float = 2.0
