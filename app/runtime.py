@@ -27,7 +27,7 @@ import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported
 from app.components import make_controller, make_map
 from app.run_log import RunLog
 from app.snapshot import EDFSlice, RunState, Snapshot
-from core.params import HTMPCParams, MappingParams, SequencerParams, SimParams
+from core.params import HTMPCParams, MappingParams, SensorParams, SequencerParams, SimParams
 from core.robot.model import RobotModel
 from core.sim.scene import Box, Scene, load_scene, random_scene
 from core.sim.sim_robot import SimRobot
@@ -111,6 +111,7 @@ class Runtime:
     def _build_parts(self) -> None:
         cfg = self.config
         htmpc = replace(cfg.htmpc, constraint=cfg.constraint)
+        self._match_sensing()
         self.map = make_map(cfg.map_kind, self.robot, self.world, cfg.mapping)
         self.controller = make_controller(self.robot, htmpc)
         self.sequencer = Sequencer(self.robot, self.sequence, cfg.sequencer, htmpc.N, htmpc.dt_s)
@@ -121,6 +122,13 @@ class Runtime:
         self.timings_ms: dict[str, float] = {}
         self.min_distance_m = math.nan
         self.latest_frames: dict[str, DepthFrame] = {}
+
+    def _match_sensing(self) -> None:
+        """The simulated robot perceives through the sensor model (`SimParams.sensor`), except with the
+        ground-truth map: the truth is exact, and a drifting pose estimate would misplace the robot in it."""
+        if isinstance(self.backend, SimRobot):
+            exact = self.config.map_kind == "ground_truth"
+            self.backend.set_sensor(SensorParams.ideal() if exact else self.config.sim.sensor)
 
     @property
     def time(self) -> float:
@@ -259,6 +267,7 @@ class Runtime:
                                   constraint=constraint or self.config.constraint)
             with self._map_lock:
                 if map_kind:
+                    self._match_sensing()
                     self.map = make_map(self.config.map_kind, self.robot, self.world, self.config.mapping)
                 if constraint:
                     self.controller = make_controller(self.robot, replace(self.config.htmpc, constraint=constraint))

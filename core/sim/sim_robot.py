@@ -35,14 +35,11 @@ class SimRobot:
                  command_timeout_s: float = 0.5, sensor: SensorParams | None = None) -> None:
         self.world = world
         params = world.params
-        self.sensor = sensor or params.sensor
         cam_params = {"hand": params.hand_camera, "base": params.base_camera}
-        self.cameras = {name: DepthCamera(world, name, cam_params[name], seed=seed + i, sensor=self.sensor)
+        self.cameras = {name: DepthCamera(world, name, cam_params[name], seed=seed + i)
                         for i, name in enumerate(cameras)}
-        self.odometry_estimate = DriftingOdometry(self.sensor.odometry_drift_m, self.sensor.odometry_drift_rad,
-                                                  np.random.default_rng([seed, 1]))
-        self._placements = -1
-        self._sync_odometry()
+        self._seed = seed
+        self.set_sensor(sensor or params.sensor)
         self._next_render = {name: world.time for name in self.cameras}
         self._taken: list[tuple[float, str, np.ndarray]] = []
         """Images taken and not yet stamped: (stamp time, camera, depth)."""
@@ -51,6 +48,16 @@ class SimRobot:
         self._command = np.zeros(9)
         self.command_timeout_s = command_timeout_s
         self.rejected_commands = 0
+
+    def set_sensor(self, sensor: SensorParams) -> None:
+        """Perceive through `sensor` from now on; the pose estimate restarts at the true pose."""
+        self.sensor = sensor
+        for cam in self.cameras.values():
+            cam.sensor = sensor
+        self.odometry_estimate = DriftingOdometry(sensor.odometry_drift_m, sensor.odometry_drift_rad,
+                                                  np.random.default_rng([self._seed, 1]))
+        self._placements = -1
+        self._sync_odometry()
 
     @property
     def time(self) -> float:
