@@ -175,6 +175,10 @@ class MappingParams:
     """Use every n-th pixel in u and v (at 3 m, 2 px ≈ 2.8 cm < one 5 cm voxel)."""
     floor_height_m: float = 0.03
     """Points below this height are the floor."""
+    flying_pixel_jump_m: float = 0.1
+    flying_pixel_jump_per_m: float = 0.05
+    """A pixel whose 3 × 3 neighbourhood spans more depth than jump + jump_per_m · z (+ 6 noise std) is a
+    flying pixel at a depth edge and is not used (`core/mapping/flying_pixels.py`)."""
     floor_snap_m: float = 10.0
     """An object whose lowest surface point is within this height of the floor is extended down to it.
     The large default says every object rests on the floor (or on a box it is merged with): the lower
