@@ -179,10 +179,14 @@ class MappingParams:
     flying_pixel_jump_per_m: float = 0.05
     """A pixel whose 3 × 3 neighbourhood spans more depth than jump + jump_per_m · z (+ 6 noise std) is a
     flying pixel at a depth edge and is not used (`core/mapping/flying_pixels.py`)."""
-    floor_snap_m: float = 10.0
-    """An object whose lowest surface point is within this height of the floor is extended down to it.
-    The large default says every object rests on the floor (or on a box it is merged with): the lower
-    part of a box is often below the hand camera's view or behind another box."""
+    floor_snap_m: float = 0.15
+    """An object's fitted box whose lowest surface point is within this height of the floor is extended down
+    to it (the floor filter cuts a box's bottom few centimetres). Lower parts hidden from view are completed
+    by the solid box instead (`assumed_depth_m`), which stops where free space was seen under the object: a
+    box at hand height stays floating (a snap of 10 m made it a floor-to-top column)."""
+    assumed_depth_m: float = 0.6
+    """Box completion (`core/mapping/completion.py`): an object seen from one side only, thinner than this,
+    is solid this deep behind the faces seen, until free space is seen there (the paper's boxes: 0.6 m)."""
     self_filter_margin_m: float = 0.0
     """Points within the robot's collision spheres grown by this margin are the robot itself."""
 
@@ -261,7 +265,8 @@ class MappingParams:
     """A submap voxel seen through in this many carving checks since it was last hit is carved away."""
     carve_check_every: int = 3
     """A matched object's surface is checked for seen-through voxels every this many observations (a
-    projection of the whole submap: carving is slow evidence, no need to pay for it every frame)."""
+    projection of the whole submap: carving is slow evidence, no need to pay for it every frame). The
+    completion samples are checked then too; a sample seen through in `carve_after_misses` checks is free."""
 
     # --- voxel-level baseline (OctoMap-style log-odds, projective free-space carving) -------------
     logodds_hit: float = 0.85
