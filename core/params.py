@@ -276,6 +276,10 @@ class MappingParams:
     """OctoMap's defaults (hit 0.7, miss 0.4, clamping 0.12–0.97); occupied when log-odds > 0."""
 
     # --- local EDF (9a–9b) --------------------------------------------------------------------------
+    edf_geometry: str = "completed"
+    """What the object map's EDF is the distance to: 'completed' (box-like objects are their solid boxes,
+    `core/mapping/completion.py`; the others their surface columns) or 'surface' (the paper's 9a: the
+    objects' observed surface voxels only, so unseen sides and insides read as free)."""
     edf_window_m: tuple[float, float, float] = (4.0, 4.0, 1.4)
     """Grid around the robot (x, y, z from the floor up)."""
     edf_voxel_m: float = 0.1

@@ -71,7 +71,7 @@ import numpy as np
 
 from core.mapping import association, consistency
 from core.mapping.completion import Completion
-from core.mapping.local_edf import EDFGrid, local_edf, mark_boxes, mark_columns
+from core.mapping.local_edf import EDFGrid, local_edf, mark_boxes, mark_columns, mark_points
 from core.mapping.registration import align
 from core.mapping.scene_points import ScenePoints, latest_time
 from core.mapping.segmentation import Segment, segment, voxelise
@@ -155,6 +155,8 @@ class Association:
         return out
 
 
+EDF_GEOMETRIES = ("completed", "surface")
+"""`MappingParams.edf_geometry`: solid boxes completed where unseen, or the observed surfaces alone (9a)."""
 EDF_PAD_M = 0.5
 """The EDT runs on the window grown by this, so objects just outside still shape the field near its edge."""
 
@@ -165,6 +167,8 @@ class ObjectMapper:
     def __init__(self, robot: RobotModel, params: MappingParams | None = None) -> None:
         self.robot = robot
         self.params = params or MappingParams()
+        if self.params.edf_geometry not in EDF_GEOMETRIES:
+            raise ValueError(f"edf_geometry must be one of {EDF_GEOMETRIES}, got {self.params.edf_geometry!r}")
         self.scene_points = ScenePoints(robot, self.params)
         self.objects: dict[int, TrackedObject] = {}
         self.removed_ids: list[int] = []
@@ -197,16 +201,20 @@ class ObjectMapper:
 
     def local_edf(self, centre_xy: np.ndarray) -> LocalEDF:
         """Signed EDF (9a–9b) in the window around `centre_xy`: box-like objects are their solid boxes
-        (`completion.py`), the others their surface voxels with the columns below them (`footprint.py`)."""
+        (`completion.py`), the others their surface voxels with the columns below them (`footprint.py`);
+        with `edf_geometry` 'surface', every object is its observed surface voxels (the paper's 9a)."""
         t0 = time.perf_counter()
         p = self.params
         grid = EDFGrid.around(np.asarray(centre_xy, dtype=float), p.edf_window_m, p.edf_voxel_m, EDF_PAD_M)
         occupied = grid.empty()
-        boxes = [o for o in self.objects.values() if o.box_like]
-        mark_boxes(grid, occupied, ((o.solid_pose, o.solid.extent) for o in boxes))
-        others = [o.solid_world_points() for o in self.objects.values() if not o.box_like]
-        if others:
-            mark_columns(grid, occupied, np.concatenate(others))
+        if p.edf_geometry == "surface":
+            mark_points(grid, occupied, self.occupied_points())
+        else:
+            boxes = [o for o in self.objects.values() if o.box_like]
+            mark_boxes(grid, occupied, ((o.solid_pose, o.solid.extent) for o in boxes))
+            others = [o.solid_world_points() for o in self.objects.values() if not o.box_like]
+            if others:
+                mark_columns(grid, occupied, np.concatenate(others))
         edf = local_edf(grid, occupied, p.theta_cutoff_m)
         self.timings_ms["edf"] = (time.perf_counter() - t0) * 1e3
         return edf

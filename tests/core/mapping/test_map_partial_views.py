@@ -65,6 +65,25 @@ def test_stacked_boxes_seen_from_the_front_are_solid_behind_it_and_get_their_dep
     view.close()
 
 
+def test_the_papers_surface_edf_reads_free_space_inside_a_box_seen_from_the_front(robot, params):
+    # the option beside completion (9a: distance to the observed surface voxels): the face is there, the inside
+    # of the box behind it reads free
+    box = Box("a", (2.0, 0.0, 0.3))
+    view = View(robot, (box,), cameras=("hand",))
+    completed, surface = ObjectMapper(robot, params), ObjectMapper(robot, replace(params, edf_geometry="surface"))
+    for _ in range(6):
+        obs = view.observe()
+        completed.integrate(obs)
+        surface.integrate(obs)
+    behind_face = np.array([[1.8, 0.0, 0.3], [2.0, 0.0, 0.3], [2.2, 0.0, 0.3]])
+    assert np.all(completed.local_edf(np.array([1.5, 0.0])).distance(behind_face) < 0.0)
+    d = surface.local_edf(np.array([1.5, 0.0])).distance(behind_face)
+    assert d[0] < 0.15 and np.all(d[1:] > 0.1)  # inside the box: free by up to the distance to its top face
+    with pytest.raises(ValueError, match="edf_geometry"):
+        ObjectMapper(robot, replace(params, edf_geometry="voxels"))
+    view.close()
+
+
 def test_a_box_at_hand_height_stays_floating(robot, params, sensor):
     shelf = Box("shelf", (2.0, 0.0, 1.0), (0.6, 0.6, 0.3))  # underside at 0.85 m
     view = View(robot, (shelf,), sensor=sensor)
