@@ -36,11 +36,14 @@ the empty place to fall under 0.4 (METHOD.md; `tests/core/mapping/test_map_consi
 update itself, and change two things:
 
 - cap 10 instead of 25: the belief remembers about one second of frames, so saturation costs less;
-- evidence weighting: a forced outlier adds w = w_max · f · min(1, n_through / n_sat) to beta instead of
-  1, with f the fraction of the expected-visible surface (in the frustum, within range, not occluded)
-  that had free space seen through it, n_through those surface voxels, w_max = 3, n_sat = 30; and
-  only if f ≥ 0.5. A box standing in plain view is hit where the map has it (f ≈ 0), so it never
-  receives a forced outlier whatever the weight; a box that is gone has f ≈ 1.
+- evidence weighting: a forced outlier adds w = w_max · f_r · min(1, n_through / n_sat) to beta instead of
+  1, with n_through the surface voxels that had free space seen through them and f_r their fraction of
+  the expected-visible surface voxels (in the frustum, within range, not occluded) whose pixels returned
+  depth, w_max = 3, n_sat = 30; and only if n_through is at least half (f ≥ 0.5) of all expected-visible
+  surface voxels, those whose pixels returned nothing included (`visibility.py`: no return is no
+  evidence). A box standing in plain view is hit where the map has it (f ≈ 0), so it never receives a
+  forced outlier whatever the weight; a box that is gone has f_r ≈ 1 and f ≈ 1 where something returns
+  behind its place; a dark box in plain view, whose pixels return nothing, has f ≈ 0 (only a rim).
 
 From saturation a fully seen-through place then removes the object after 5 frames (cap 10, w = 3),
 a box seen once after 3 (the "more than two updates" rule). Measured on rendered frames with depth
@@ -407,13 +410,14 @@ class ObjectMapper:
             obj.updates += 1
 
     def forced_outlier_weight(self, counts: VisibilityCounts) -> float:
-        """w = w_max · f · min(1, n_through / n_sat) if f ≥ f_min and enough surface was expected, else 0."""
+        """w = w_max · f_r · min(1, n_through / n_sat) if f ≥ f_min and enough surface was expected, else 0
+        (f: the seen-through fraction of the expected-visible surface, f_r: of its part that returned depth)."""
         p = self.params
         if counts.expected < p.min_expected_voxels or counts.through_fraction < p.clear_view_fraction:
             return 0.0
         if not p.weight_by_clear_view:
             return p.forced_outlier_weight
-        return p.forced_outlier_weight * counts.through_fraction * min(1.0, counts.through / p.clear_view_voxels)
+        return p.forced_outlier_weight * counts.through_of_returns * min(1.0, counts.through / p.clear_view_voxels)
 
     def _remove_changed(self) -> None:
         """Remove the objects with E[v] < theta_stat after more than `min_observations` updates (and any

@@ -69,8 +69,15 @@ class VisibilityCounts:
 
     @property
     def through_fraction(self) -> float:
-        """Fraction of the expected-visible surface with free space seen through it."""
+        """Fraction of the expected-visible surface with free space seen through it (unseen points count
+        against it: they might be a surface that returns nothing)."""
         return self.through / self.expected if self.expected else 0.0
+
+    @property
+    def through_of_returns(self) -> float:
+        """Of the expected-visible points whose pixels returned depth, the fraction seen through."""
+        returned = self.hit + self.through
+        return self.through / returned if returned else 0.0
 
 
 @dataclass(frozen=True)
