@@ -51,7 +51,9 @@ from app.run_log import RunLog
 from app.snapshot import RunState
 from core.htmpc.safety import brake_along, braking_plan
 from core.mapping.world_map import WorldMap
+from core.params import SensorParams
 from core.robot.model import RobotModel
+from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
 from core.types import NQ, DepthFrame, LocalEDF, Observation, Plan, PlanStatus, RobotBackend, RobotState
 from tasks.schema import TaskSequence
@@ -114,6 +116,7 @@ class ClosedLoop:
         self.map_lock = threading.Lock()
         self.frames_ready = threading.Condition()
         htmpc = replace(config.htmpc, constraint=config.constraint)
+        self._match_sensing()
         self.map: WorldMap = make_map(config.map_kind, robot, world, config.mapping)
         self.controller: HTMPC = make_controller(robot, htmpc)
         self.sequencer = self._sequencer(sequence)
@@ -140,6 +143,13 @@ class ClosedLoop:
         self._last_control_t = -math.inf
         self.log = RunLog()
         self.problems = ProblemLog(1e3 / config.htmpc.control_rate_hz)
+
+    def _match_sensing(self) -> None:
+        """The simulated robot perceives through the sensor model (`SimParams.sensor`), except with the
+        ground-truth map: the truth is exact, and a drifting pose estimate would misplace the robot in it."""
+        if isinstance(self.backend, SimRobot):
+            exact = self.config.map_kind == "ground_truth"
+            self.backend.set_sensor(SensorParams.ideal() if exact else self.config.sim.sensor)
 
     def _initial_state(self) -> RobotState:
         state = self.backend.observe().state  # also drops frames of an earlier scene
@@ -221,6 +231,7 @@ class ClosedLoop:
                 self.config = replace(self.config, map_kind=map_kind or self.config.map_kind,
                                       constraint=constraint or self.config.constraint)
             if map_kind:
+                self._match_sensing()
                 new_map = make_map(self.config.map_kind, self.robot, self.world, self.config.mapping)
                 with self.map_lock:
                     old, self.map = self.map, new_map

@@ -20,7 +20,8 @@ RESULTS_DIR = Path(__file__).parent / "results"
 
 
 def machine() -> dict[str, object]:
-    """CPU model, core count and Python version of this machine."""
+    """CPU model, core count, Python version and load average (1, 5, 15 min: timings on a shared machine are
+    only comparable at similar load) of this machine."""
     cpu = platform.processor() or platform.machine()
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
@@ -29,7 +30,8 @@ def machine() -> dict[str, object]:
                 break
     except OSError:
         pass
-    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version()}
+    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(),
+            "load_average": [round(x, 2) for x in os.getloadavg()]}
 
 
 def bench_args(description: str, argv: list[str] | None = None) -> argparse.Namespace:

@@ -62,9 +62,41 @@ class CameraParams:
     fovy_deg: float = 58.0
     range_m: float = 3.0
     near_m: float = 0.1
-    noise_std_m: float = 0.0
-    """Std of additive Gaussian depth noise, scaled by depth² (stereo-like) at 1 m."""
     rate_hz: float = 10.0
+
+
+@dataclass(frozen=True)
+class SensorParams:
+    """The sensor model: what makes the simulated robot perceive its world as a real one does.
+
+    `SensorParams()` is on (the studio, the bridge's simulated driver and the experiments' perceived
+    runs); `SensorParams.ideal()` is exact sensing (the ground-truth map, geometry tests). Each effect is
+    measured on rendered frames in `tests/core/sim/test_sensor_model.py`. Defaults are those of a
+    stereo depth camera (RealSense D435-like) and the wheel odometry of an omnidirectional base.
+    """
+
+    depth_noise_m: float = 0.005
+    """Depth std at 1 m; std = depth_noise_m · z² (stereo: σ_z = z² σ_disparity / (f b); the D435 at
+    f = 380 px, b = 5 cm, 0.08 px subpixel gives 0.0042)."""
+    dropout_fraction: float = 0.02
+    """Pixels that return nothing at random (speckle on low-texture patches)."""
+    flying_pixel_fraction: float = 0.5
+    """Pixels next to a depth edge that read a depth between the two sides (mixed pixels)."""
+    flying_pixel_jump_m: float = 0.1
+    """A depth step larger than this between neighbouring pixels is an edge."""
+    odometry_drift_m: float = 0.01
+    """Random walk of the base position estimate: std per axis after 1 m driven grows as √distance (m/√m)."""
+    odometry_drift_rad: float = 0.01
+    """Random walk of the heading estimate: std after 1 rad turned grows as √angle (rad/√rad)."""
+    camera_time_offset_s: float = 0.02
+    """A frame is stamped this long after it was taken (driver latency not compensated): its pose is the
+    robot's estimate at the stamp, and it arrives then."""
+
+    @classmethod
+    def ideal(cls) -> SensorParams:
+        """Exact depth and odometry, frames stamped when taken."""
+        return cls(depth_noise_m=0.0, dropout_fraction=0.0, flying_pixel_fraction=0.0, odometry_drift_m=0.0,
+                   odometry_drift_rad=0.0, camera_time_offset_s=0.0)
 
 
 @dataclass(frozen=True)
@@ -77,8 +109,8 @@ class SimParams:
     room_half_size_m: float = 6.0
     hand_camera: CameraParams = field(default_factory=CameraParams)
     base_camera: CameraParams = field(default_factory=CameraParams)
-    odometry_noise_std_m: float = 0.0
-    odometry_noise_std_rad: float = 0.0
+    sensor: SensorParams = field(default_factory=SensorParams)
+    """The sensor model of the simulated robot (`SimRobot`); on by default, a simulated robot is a real one."""
     box_pool: int = 32
     """Boxes pre-allocated as hidden mocap bodies; adding beyond the pool recompiles (grows it ×2)."""
     distance_margin_m: float = 2.0
@@ -161,10 +193,18 @@ class MappingParams:
     """Use every n-th pixel in u and v (at 3 m, 2 px ≈ 2.8 cm < one 5 cm voxel)."""
     floor_height_m: float = 0.03
     """Points below this height are the floor."""
-    floor_snap_m: float = 10.0
-    """An object whose lowest surface point is within this height of the floor is extended down to it.
-    The large default says every object rests on the floor (or on a box it is merged with): the lower
-    part of a box is often below the hand camera's view or behind another box."""
+    flying_pixel_jump_m: float = 0.1
+    flying_pixel_jump_per_m: float = 0.05
+    """A pixel whose 3 × 3 neighbourhood spans more depth than jump + jump_per_m · z (+ 6 noise std) is a
+    flying pixel at a depth edge and is not used (`core/mapping/flying_pixels.py`)."""
+    floor_snap_m: float = 0.15
+    """An object's fitted box whose lowest surface point is within this height of the floor is extended down
+    to it (the floor filter cuts a box's bottom few centimetres). Lower parts hidden from view are completed
+    by the solid box instead (`assumed_depth_m`), which stops where free space was seen under the object: a
+    box at hand height stays floating (a snap of 10 m made it a floor-to-top column)."""
+    assumed_depth_m: float = 0.6
+    """Box completion (`core/mapping/completion.py`): an object seen from one side only, thinner than this,
+    is solid this deep behind the faces seen, until free space is seen there (the paper's boxes: 0.6 m)."""
     self_filter_margin_m: float = 0.0
     """Points within the robot's collision spheres grown by this margin are the robot itself."""
 
@@ -243,7 +283,8 @@ class MappingParams:
     """A submap voxel seen through in this many carving checks since it was last hit is carved away."""
     carve_check_every: int = 3
     """A matched object's surface is checked for seen-through voxels every this many observations (a
-    projection of the whole submap: carving is slow evidence, no need to pay for it every frame)."""
+    projection of the whole submap: carving is slow evidence, no need to pay for it every frame). The
+    completion samples are checked then too; a sample seen through in `carve_after_misses` checks is free."""
 
     # --- voxel-level baseline (OctoMap-style log-odds, projective free-space carving) -------------
     logodds_hit: float = 0.85
@@ -253,6 +294,10 @@ class MappingParams:
     """OctoMap's defaults (hit 0.7, miss 0.4, clamping 0.12–0.97); occupied when log-odds > 0."""
 
     # --- local EDF (9a–9b) --------------------------------------------------------------------------
+    edf_geometry: str = "completed"
+    """What the object map's EDF is the distance to: 'completed' (box-like objects are their solid boxes,
+    `core/mapping/completion.py`; the others their surface columns) or 'surface' (the paper's 9a: the
+    objects' observed surface voxels only, so unseen sides and insides read as free)."""
     edf_window_m: tuple[float, float, float] = (4.0, 4.0, 1.4)
     """Grid around the robot (x, y, z from the floor up)."""
     edf_voxel_m: float = 0.1

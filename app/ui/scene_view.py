@@ -10,6 +10,8 @@ import viser
 from core.sim.scene import Box
 
 BOX_RGB = (194, 153, 107)
+DARK_BOX_RGB = (20, 20, 23)
+"""A box whose surface returns no depth (`Box.dark`) is drawn black, as in the simulation."""
 
 
 class SceneView:
@@ -30,12 +32,13 @@ class SceneView:
             old = self._nodes.get(box_id)
             if old is not None and old[0] == box:
                 continue
-            if old is not None and old[0].size == box.size:
+            if old is not None and (old[0].size, old[0].dark) == (box.size, box.dark):
                 handle = old[1]
             else:
                 if old is not None:
                     old[1].remove()
-                handle = self.server.scene.add_box(f"/scene/boxes/{box_id}", color=BOX_RGB, dimensions=box.size)
+                colour = DARK_BOX_RGB if box.dark else BOX_RGB
+                handle = self.server.scene.add_box(f"/scene/boxes/{box_id}", color=colour, dimensions=box.size)
                 if self.on_click is not None:
                     handle.on_click(lambda _, box_id=box_id: self.on_click(box_id))
             handle.position = box.position

@@ -1,19 +1,23 @@
 """E2: CBF vs EDF collision constraints, on ground-truth and perceived maps, and a gamma sweep.
 
-    python -m bench.experiments.e2_cbf_vs_edf [--quick] [--workers N] [--ray ADDRESS]
+    python -m bench.experiments.e2_cbf_vs_edf [--quick] [--workers N] [--ray ADDRESS] [--maps M ...] [--no-sweep]
 
 The paper's protocol: 15 seeded random scenes (8 boxes of 0.6 m, one or two layers, in 5 × 5 m;
 `core.sim.scene.random_scene`) × 3 reference speeds = 45 trials, each with the CBF constraint
 (dh/dt ≥ −gamma h, gamma 1) and the EDF baseline (h ≥ 0), both with delta 0.25 m, on the ground-truth
-map (the simulator's exact EDF), on the perceived object-level map (POCD from the two depth
-cameras), and on the perceived map with the paper's closed-loop delay (0.45 s perception, 0.05 s
-actuation, as E3; without it the simulated perception is fresher than the paper's robot). The robot
+map (the simulator's exact EDF, exact odometry), on the perceived object-level map (POCD from the two
+depth cameras through the sensor model: depth noise 0.005 z², 2 % dropouts, flying pixels, odometry
+drift 0.01 m/√m and 0.01 rad/√rad, frames stamped 20 ms late; `core.params.SensorParams`), on the same
+with the EDF of the paper's 9a (distance to the observed surfaces only, `MappingParams.edf_geometry`
+'surface', instead of boxes completed where unseen), and on the perceived map with the paper's
+closed-loop delay (0.45 s perception, 0.05 s actuation, as E3). `--maps` runs some of them. The robot
 drives from (−3.5, 0) to (3.5, 0) with whole-body navigation [base, EE]; the reference advances along
 the A* path at the trial's speed (`SequencerParams.nominal_speed_mps`). A* grows the boxes by the base's
 footprint only (its circumscribed radius, 0.62 m), so the clearance beyond the body is what the constraint
 makes of it; grown by the whole clearance (0.8 m, the studio's default), planned paths keep h ≈ 0 and
 the two constraints have little to differ on.
-Gamma sweep: the CBF with several gammas on the perceived map at the highest speed, same scenes.
+Gamma sweep: the CBF with several gammas on the perceived map at the highest speed, same scenes
+(`--no-sweep` leaves it out).
 
 Measured per trial: reached the goal (within 60 s), collision-free (no MuJoCo contact of any robot
 geom with a box), minimum clearance (true robot geometry to the nearest box), time to goal, driven
@@ -25,9 +29,10 @@ obstacles says little: driving past a box at speed does not approach it.
 
 from __future__ import annotations
 
+import argparse
 import logging
 import math
-from dataclasses import replace
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -37,6 +42,7 @@ from app.runtime import Runtime
 from bench.experiments.measures import NEAR_OBSTACLE_M, run_metrics, solver_figures
 from bench.experiments.report_files import fmt, md_table, rate, save_figure, stat, write_json, write_markdown
 from bench.experiments.trials import Trial, experiment_args, quiet_logs, runtime_config, trial_results, tunables
+from core.params import MappingParams
 from core.sim.scene import random_scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 
@@ -45,13 +51,16 @@ log = logging.getLogger(__name__)
 NAME = "e2_cbf_vs_edf"
 SPEEDS_MPS = (0.4, 0.7, 1.0)
 CONSTRAINTS = ("cbf", "edf")
-MAPS = ("ground_truth", "object", "object_delayed")
-"""Map conditions: the simulator's exact EDF; the perceived object map; the perceived map with the
-paper's closed-loop delay (`DELAYS_S`)."""
-MAP_KIND = {"ground_truth": "ground_truth", "object": "object", "object_delayed": "object"}
+MAPS = ("ground_truth", "object", "object_surface", "object_delayed")
+"""Map conditions: the simulator's exact EDF; the perceived object map (sensor model on); the same with the
+paper's surface EDF (9a); the perceived map with the paper's closed-loop delay (`DELAYS_S`)."""
+MAP_KIND = {"ground_truth": "ground_truth", "object": "object", "object_surface": "object", "object_delayed": "object"}
+MAPPING = {"object_surface": replace(MappingParams(), edf_geometry="surface")}
+"""Mapping parameters of a condition (default `MappingParams()`: boxes completed where unseen)."""
 DELAYS_S = {"object_delayed": (0.45, 0.05)}
 """(perception, actuation) delay (s): camera 0.13 + mapping 0.35 on the paper's robot, solve rounded up."""
-LABEL = {"ground_truth": "GT", "object": "perceived", "object_delayed": "perceived+0.5 s"}
+LABEL = {"ground_truth": "GT", "object": "perceived", "object_surface": "perceived, 9a", "object_delayed":
+         "perceived+0.5 s"}
 GAMMAS = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
 SCENES = 15
 TIMEOUT_S = 60.0
@@ -69,6 +78,7 @@ def trial(params: dict) -> dict:
     perception_s, actuation_s = DELAYS_S.get(params["map"], (0.0, 0.0))
     cfg = runtime_config(map_kind=MAP_KIND[params["map"]], constraint=params["constraint"], seed=params["seed"],
                          perception_delay_s=perception_s, actuation_delay_s=actuation_s,
+                         mapping=MAPPING.get(params["map"], tunables().mapping),
                          htmpc=replace(tunables().htmpc, gamma=params["gamma"]),
                          sequencer=replace(tunables().sequencer, nominal_speed_mps=params["speed"],
                                            inflation_m=tunables().robot.footprint_radius_m))
@@ -132,13 +142,19 @@ def summarise(results: list[dict], speeds: tuple[float, ...], gamma_speed: float
     return figures | solver_figures(results)
 
 
+def _maps_run(results: list[dict]) -> list[str]:
+    """The map conditions of the main grid that were run (all, or those of `--maps`)."""
+    return [m for m in MAPS if _group(results, part="main", map=m)]
+
+
 def _bar(ax, results: list[dict], key: str, how: str, speeds: tuple[float, ...], ylabel: str) -> None:
     colours = {"cbf": "tab:blue", "edf": "tab:orange"}
-    labels = [f"{LABEL[m]}\n{v:g} m/s" for m in MAPS for v in speeds]
+    maps = _maps_run(results)
+    labels = [f"{LABEL[m]}\n{v:g} m/s" for m in maps for v in speeds]
     x = np.arange(len(labels))
     for j, c in enumerate(CONSTRAINTS):
         vals = []
-        for m in MAPS:
+        for m in maps:
             for v in speeds:
                 rows = _group(results, part="main", map=m, constraint=c, speed=v)
                 vals.append(rate(rows, key) if how == "rate" else stat(rows, key, how))
@@ -162,7 +178,7 @@ def figures_png(results: list[dict], speeds: tuple[float, ...], gamma_speed: flo
 
     fig, ax = plt.subplots(figsize=(10, 4.5))
     data, labels = [], []
-    for m in MAPS:
+    for m in _maps_run(results):
         for c in CONSTRAINTS:
             rows = _group(results, part="main", map=m, constraint=c)
             vals = [r["min_clearance_m"] for r in rows if "error" not in r and r.get("min_clearance_m") is not None]
@@ -209,7 +225,7 @@ HEADERS = ["trials", "reached goal", "collision-free", "min clearance (m, median
 
 
 def report(results: list[dict], figures: dict[str, float], speeds: tuple[float, ...], gamma_speed: float,
-           pngs: list[str], out_dir: Path, quick: bool) -> None:
+           pngs: list[str], out_dir: Path, quick: bool, options: str = "") -> None:
     """Markdown: the paper's claims, our tables (overall, per speed, gamma sweep), figures, failures."""
     overall = md_table(["map", "constraint", *HEADERS],
                        [_row(figures, f"{m}_{c}", [m, c.upper()]) for m in MAPS for c in CONSTRAINTS
@@ -235,26 +251,35 @@ def report(results: list[dict], figures: dict[str, float], speeds: tuple[float, 
         ("Figures", "\n\n".join(f"![{p}]({p})" for p in pngs)),
         ("Trials that failed or touched a box", failures),
     ]
-    write_markdown(out_dir, NAME, "E2 — CBF vs EDF constraints", sections, quick)
+    write_markdown(out_dir, NAME, "E2 — CBF vs EDF constraints", sections, quick, options)
+
+
+def _options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--maps", nargs="+", choices=MAPS, default=list(MAPS), help="map conditions to run")
+    parser.add_argument("--no-sweep", action="store_true", help="leave the gamma sweep out")
 
 
 def main(argv: list[str] | None = None) -> dict[str, float]:
     quiet_logs()
-    args = experiment_args(NAME, __doc__.splitlines()[0], argv)
+    args = experiment_args(NAME, __doc__.splitlines()[0], argv, extra=_options)
     seeds = list(range(1 if args.quick else SCENES))
     speeds = (1.0,) if args.quick else SPEEDS_MPS
-    gammas = (0.5, 4.0) if args.quick else GAMMAS
+    gammas = () if args.no_sweep else (0.5, 4.0) if args.quick else GAMMAS
     gamma_speed = max(speeds)
-    trials = main_trials(seeds, speeds, MAPS) + gamma_trials(seeds, gammas, gamma_speed)
+    maps = tuple(m for m in MAPS if m in args.maps)
+    trials = main_trials(seeds, speeds, maps) + gamma_trials(seeds, gammas, gamma_speed)
     results = trial_results(args, NAME, trials, "E2 scenes × speeds × maps × constraints")
     figures = summarise(results, speeds, gamma_speed)
     args.out.mkdir(parents=True, exist_ok=True)
     pngs = figures_png(results, speeds, gamma_speed, args.out)
-    settings = {"seeds": seeds, "speeds_mps": list(speeds), "maps": list(MAPS), "constraints": list(CONSTRAINTS),
+    settings = {"seeds": seeds, "speeds_mps": list(speeds), "maps": list(maps), "constraints": list(CONSTRAINTS),
                 "gammas": list(gammas), "gamma_sweep_speed_mps": gamma_speed,
-                "delta_safe_m": tunables().htmpc.delta_safe_m, "timeout_s": TIMEOUT_S, "paper": PAPER}
+                "delta_safe_m": tunables().htmpc.delta_safe_m, "timeout_s": TIMEOUT_S, "paper": PAPER,
+                "sensor_model": asdict(tunables().sim.sensor)}
     write_json(args.out, NAME, settings, figures, results, args.quick)
-    report(results, figures, speeds, gamma_speed, pngs, args.out, args.quick)
+    options = " ".join(([f"--maps {' '.join(maps)}"] if maps != MAPS else [])
+                       + (["--no-sweep"] if args.no_sweep else []))
+    report(results, figures, speeds, gamma_speed, pngs, args.out, args.quick, options)
     print("\n".join(f"{k}: {fmt(v)}" for k, v in figures.items() if "mps_" not in k))
     return figures
 

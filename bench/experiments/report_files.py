@@ -99,9 +99,11 @@ def md_table(headers: Sequence[str], rows: Iterable[Sequence]) -> str:
     return "\n".join(lines)
 
 
-def write_markdown(out_dir: Path, name: str, title: str, sections: list[tuple[str, str]], quick: bool) -> Path:
-    """`<out_dir>/README.md`: title, the command that made it, then (heading, body) sections."""
-    command = f"python -m bench.experiments.{name}{' --quick' if quick else ''}"
+def write_markdown(out_dir: Path, name: str, title: str, sections: list[tuple[str, str]], quick: bool,
+                   options: str = "") -> Path:
+    """`<out_dir>/README.md`: title, the command that made it (with `options` beyond --quick), then (heading,
+    body) sections."""
+    command = f"python -m bench.experiments.{name}{' --quick' if quick else ''}{' ' + options if options else ''}"
     head = [f"# {title}", "",
             f"Made by `{command}`{' (quick smoke variant: few trials, not the full figures)' if quick else ''} "
             f"on commit `{git_commit()}`, {dt.datetime.now(dt.UTC).strftime('%Y-%m-%d %H:%M UTC')}, "

@@ -69,8 +69,9 @@ def runtime_config(**kwargs):
     return RuntimeConfig(**{**tunables().sections(), **kwargs})
 
 
-def experiment_args(name: str, description: str, argv: list[str] | None = None) -> argparse.Namespace:
-    """The command line every experiment shares."""
+def experiment_args(name: str, description: str, argv: list[str] | None = None,
+                    extra: Callable[[argparse.ArgumentParser], None] | None = None) -> argparse.Namespace:
+    """The command line every experiment shares (`extra` adds an experiment's own options)."""
     parser = argparse.ArgumentParser(prog=f"python -m bench.experiments.{name}", description=description)
     parser.add_argument("--quick", action="store_true", help="smoke variant: a few short trials (1–2 minutes)")
     parser.add_argument("--workers", type=int, default=2, help="local worker processes (1: run in this process)")
@@ -81,6 +82,8 @@ def experiment_args(name: str, description: str, argv: list[str] | None = None) 
                         help="no trials: rebuild figures and report from the JSON of the last run in --out")
     parser.add_argument("--params", type=Path, default=None, metavar="FILE.yaml",
                         help="tunables overriding core/params.py (the experiment's own settings still apply)")
+    if extra is not None:
+        extra(parser)
     args = parser.parse_args(argv if argv is not None else sys.argv[1:])
     if args.workers < 1:
         parser.error("--workers must be at least 1")

@@ -15,15 +15,23 @@ Pitfalls measured and handled here:
   instead of 1 to beta (weight 1 is exactly the paper's forced outlier).
 - A Delta beyond ±Delta_max given to `update` is clipped to the support's edge (it is then the most
   outlying measurement the model can express), never silently made an inlier.
+- Underflow. Under the cap, every inlier shrinks beta by about cap / (cap + 1): after a few thousand
+  frames of a box in plain view beta is 1e-300 and then 0, and the log-Beta differences of METHOD.md's
+  eta1 and eta2 became inf − inf; the NaN was read as a pure outlier (E[v] of a still box fell to 0.73
+  over 20,000 inlier updates). The normalisation only needs the ratio eta1 / eta2, which is exactly
+  (alpha + k s) / (beta + k (1 − s)) (B(x + 1, y) / B(x, y + 1) = x / y): no Beta functions, no
+  cancellation. alpha and beta are floored at `EVIDENCE_FLOOR` pseudo-counts, so that E[v] and Var[v]
+  stay defined; a millionth of an observation changes no decision (one forced outlier adds ≥ 1e-2).
 """
 
 from __future__ import annotations
 
 import math
 
-from scipy.special import betaln
-
 from core.types import Posterior
+
+EVIDENCE_FLOOR = 1e-6
+"""alpha and beta never fall below this many pseudo-observations (no underflow to 0, see above)."""
 
 
 def normal_pdf(x: float, mean: float, var: float) -> float:
@@ -38,11 +46,12 @@ def uniform_pdf(x: float, delta_max: float) -> float:
 
 def branch_weights(post: Posterior, delta: float, s: float, k: float, tau: float,
                    delta_max: float) -> tuple[float, float]:
-    """(C1, C2): normalised weights of the inlier and outlier branches (step 2)."""
-    a, b = post.alpha, post.beta
-    log_b0 = betaln(a, b)
-    eta1 = math.exp(betaln(a + k * s + 1.0, b + k * (1.0 - s)) - log_b0)
-    eta2 = math.exp(betaln(a + k * s, b + k * (1.0 - s) + 1.0) - log_b0)
+    """(C1, C2): normalised weights of the inlier and outlier branches (step 2).
+
+    eta1 / eta2 = B(a + 1, b) / B(a, b + 1) = a / b with a = alpha + k s, b = beta + k (1 − s): the common
+    factor B(alpha, beta) and the Beta functions cancel in the normalisation (module docstring)."""
+    eta1 = post.alpha + k * s
+    eta2 = post.beta + k * (1.0 - s)
     c1 = eta1 * normal_pdf(delta, post.mu, post.sigma**2 + tau**2)
     c2 = eta2 * uniform_pdf(delta, delta_max)
     total = c1 + c2
@@ -81,7 +90,8 @@ def update(post: Posterior, delta: float, s: float = 0.0, k: float = 0.0, tau: f
     mu = c1 * m + c2 * post.mu
     var = c1 * (m**2 + g2) + c2 * (post.mu**2 + var0) - mu**2
     alpha, beta = match_beta(post.alpha, post.beta, c1, c2, s, k)
-    return Posterior(mu=mu, sigma=math.sqrt(max(var, 1e-12)), alpha=alpha, beta=beta)
+    return Posterior(mu=mu, sigma=math.sqrt(max(var, 1e-12)), alpha=max(alpha, EVIDENCE_FLOOR),
+                     beta=max(beta, EVIDENCE_FLOOR))
 
 
 def forced_outlier(post: Posterior, s: float = 0.0, k: float = 0.0, weight: float = 1.0) -> Posterior:

@@ -1,9 +1,10 @@
 """The points both maps build from: per depth frame, the world points that are neither floor nor robot.
 
-Depth → points (`depth_points`), floor removal (`floor`), robot self-filter (`self_filter`), in that
-order, for every frame of an `Observation`. The robot's spheres are placed where the robot was when
-the frame was taken, q − v (t_state − t_frame): a frame is up to a camera period older than the state
-that comes with it, and the arm moving at 2 rad/s would otherwise leave pieces of itself in the map.
+Flying pixels dropped (`flying_pixels`), depth → points (`depth_points`), floor removal (`floor`), robot
+self-filter (`self_filter`), in that order, for every frame of an `Observation`. The robot's spheres are
+placed where the robot was when the frame was taken, q − v (t_state − t_frame): a frame is up to a camera
+period older than the state that comes with it, and the arm moving at 2 rad/s would otherwise leave
+pieces of itself in the map.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import numpy as np
 
 from core.mapping.depth_points import unproject_frame
 from core.mapping.floor import above_floor, floor_threshold
+from core.mapping.flying_pixels import without_flying_pixels
 from core.mapping.self_filter import RobotBody, SelfFilter
 from core.params import MappingParams
 from core.robot.model import RobotModel
@@ -31,8 +33,9 @@ class ScenePoints:
     def of_frame(self, frame: DepthFrame, body: RobotBody) -> np.ndarray:
         """World points (N×3) of one frame without floor and robot (its body from `SelfFilter.body`)."""
         p = self.params
-        fp = unproject_frame(frame.depth, frame.K, frame.T_world_camera, p.pixel_stride,
-                             min(p.range_m, frame.range_m))
+        depth = without_flying_pixels(frame.depth, p.pixel_stride, p.flying_pixel_jump_m, p.flying_pixel_jump_per_m,
+                                      p.depth_noise_coeff_m)
+        fp = unproject_frame(depth, frame.K, frame.T_world_camera, p.pixel_stride, min(p.range_m, frame.range_m))
         keep = above_floor(fp.points, floor_threshold(fp.depth, fp.ray_dz, p.floor_height_m, p.depth_noise_coeff_m))
         pts = fp.points[keep]
         return pts[body.outside(pts)]

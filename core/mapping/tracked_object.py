@@ -2,10 +2,12 @@
 
 The object frame T_world_object (yaw and translation) is fixed to the body: registration moves it,
 the submap M_i lives in it. The published pose and extent are the upright box fitted to the submap
-in that frame, refitted whenever the submap changes. Whether that box stands for the object (a box,
-or touching boxes that make one) or only bounds it (the L- or ring-shaped rows of an aisle) is
-decided by the object's `Footprint`: only a box-like object is solid in the EDF and has its unseen
-box faces count as its surface.
+in that frame (what was seen), refitted whenever the submap changes. Whether that box stands for the
+object (a box, or touching boxes that make one) or only bounds it (the L- or ring-shaped rows of an
+aisle) is decided by the object's `Footprint`: only a box-like object is solid in the EDF and has its
+unseen box faces count as its surface. For those, its `solid` box is the fit completed where it was
+not seen (`completion.py`: an assumed depth behind a face seen from one side, down to the floor, each
+cut short by free space seen there): the EDF, the association and the consistency update use it.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import math
 import numpy as np
 
 from core.mapping.box_fit import BoxFit, fit_upright_box
+from core.mapping.completion import Completion
 from core.mapping.footprint import Footprint
 from core.mapping.submap import ObjectSubmap
 from core.types import MappedObject, ObjectStatus, Posterior
@@ -38,8 +41,11 @@ class TrackedObject:
     """Mutable state of one mapped object (the map's own bookkeeping; snapshots are `MappedObject`s)."""
 
     def __init__(self, object_id: int, points_world: np.ndarray, voxel_m: float, prior: Posterior,
-                 floor_snap_m: float, box_fill_max_m: float = np.inf) -> None:
+                 floor_snap_m: float, box_fill_max_m: float = np.inf, completion: Completion | None = None) -> None:
         self.id = object_id
+        self.completion = completion or Completion(step_m=0.1, assumed_depth_m=0.0, confirm=3)
+        """Cameras that saw the object and free space seen where its unseen parts could be."""
+        self._solid_box: tuple[tuple, BoxFit] | None = None
         self.floor_snap_m = floor_snap_m
         self.box_fill_max_m = box_fill_max_m
         first = fit_upright_box(points_world, floor_z=0.0, floor_snap_m=floor_snap_m)
@@ -86,6 +92,9 @@ class TrackedObject:
         """Take over the surface of another object (a duplicate of part of this one)."""
         self.integrate(other.world_points)
         self.observations = max(self.observations, other.observations)
+        R, t = other.T_world_object[:3, :3], other.T_world_object[:3, 3]
+        for camera in other.completion.cameras:
+            self.saw_from(R @ camera + t)
 
     def carve(self, min_misses: int) -> int:
         """Drop submap voxels repeatedly seen through; returns how many went."""
@@ -109,7 +118,7 @@ class TrackedObject:
 
     def distance(self, points_world: np.ndarray, upper_m: float) -> np.ndarray:
         """Distance (m, at most `upper_m`) of world points to the object: to its submap surface M_i or to
-        the faces of its fitted box, whichever is nearer (faces never seen, e.g. behind an occluder,
+        the faces of its solid box, whichever is nearer (faces never seen, e.g. behind an occluder,
         are still the object's)."""
         local = self.to_object(points_world)
         d = self.submap.distance(local, upper_m)
@@ -161,6 +170,36 @@ class TrackedObject:
         return self._box_like and not self.hollow
 
     @property
+    def solid(self) -> BoxFit:
+        """The fitted box completed where the object was not seen (object frame; `completion.py`)."""
+        fit, floor_z = self.fit, -self.T_world_object[2, 3]
+        key = (id(fit), self.completion.version, floor_z)
+        if self._solid_box is None or self._solid_box[0] != key:
+            self._solid_box = (key, self.completion.box(fit, floor_z))
+        return self._solid_box[1]
+
+    @property
+    def solid_pose(self) -> np.ndarray:
+        """World pose (4×4) of the solid box's centre."""
+        return self.T_world_object @ self.solid.pose()
+
+    def completion_samples(self) -> np.ndarray:
+        """World points where free space, if seen, shortens the solid box (`Completion.samples`)."""
+        local = self.completion.samples(self.fit, -self.T_world_object[2, 3])
+        R, t = self.T_world_object[:3, :3], self.T_world_object[:3, 3]
+        return local @ R.T + t
+
+    def saw_from(self, camera_world: np.ndarray) -> None:
+        """A camera at this world position observed the object (which sides were seen)."""
+        self.completion.saw_from(self.to_object(np.asarray(camera_world, float)[None])[0])
+        self._bounds = None
+
+    def mark_completion(self, samples_world: np.ndarray, through: np.ndarray, hit: np.ndarray) -> None:
+        """Record which completion samples were seen through or hit in one frame."""
+        self.completion.mark(self.to_object(samples_world), through, hit)
+        self._bounds = None
+
+    @property
     def footprint(self) -> Footprint:
         """Occupied x-y cells of the surface in the object frame (refitted with the box)."""
         _ = self.fit
@@ -202,28 +241,28 @@ class TrackedObject:
         return self.fit.extent
 
     def bounds(self) -> np.ndarray:
-        """World axis-aligned bounds (2×3: lower, upper) of the fitted box."""
+        """World axis-aligned bounds (2×3: lower, upper) of the solid box."""
         if self._bounds is None:
-            pose = self.pose
-            reach = np.abs(pose[:3, :3]) @ self.fit.half
+            pose = self.solid_pose
+            reach = np.abs(pose[:3, :3]) @ self.solid.half
             self._bounds = np.array([pose[:3, 3] - reach, pose[:3, 3] + reach])
         return self._bounds
 
     def _box_signed_distance(self, local: np.ndarray) -> np.ndarray:
-        """Signed distance of object-frame points to the fitted box (negative inside)."""
-        fit = self.fit
-        q = np.abs((local - fit.centre) @ fit.rotation) - fit.half
+        """Signed distance of object-frame points to the solid box (negative inside)."""
+        box = self.solid
+        q = np.abs((local - box.centre) @ box.rotation) - box.half
         return np.sqrt(np.sum(np.maximum(q, 0.0) ** 2, axis=1)) + np.minimum(q.max(axis=1), 0.0)
 
     def inside_box(self, points_world: np.ndarray, grow_m: float) -> np.ndarray:
-        """Mask of world points within the fitted box grown by `grow_m`."""
-        fit = self.fit
-        u = (self.to_object(points_world) - fit.centre) @ fit.rotation
-        return np.all(np.abs(u) <= fit.half + grow_m, axis=1)
+        """Mask of world points within the solid box grown by `grow_m`."""
+        box = self.solid
+        u = (self.to_object(points_world) - box.centre) @ box.rotation
+        return np.all(np.abs(u) <= box.half + grow_m, axis=1)
 
     def bounding_sphere(self) -> tuple[np.ndarray, float]:
-        """Centre and radius of a sphere around the fitted box (for frustum culling)."""
-        return self.pose[:3, 3], 0.5 * float(np.linalg.norm(self.extent))
+        """Centre and radius of a sphere around the solid box (for frustum culling)."""
+        return self.solid_pose[:3, 3], 0.5 * float(np.linalg.norm(self.solid.extent))
 
     def snapshot(self) -> MappedObject:
         return MappedObject(id=self.id, pose=self.pose, extent=self.extent.copy(), points=self.world_points.copy(),

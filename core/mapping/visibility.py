@@ -6,12 +6,23 @@ depth noise model):
 
 - outside the image, behind the camera or beyond the range: not expected (no evidence);
 - |d − z| ≤ m: **hit**, the surface was seen where the map has it;
-- every pixel within `patch_px` of its pixel reads beyond z + m, or no return (d = 0) for a point well
-  within range: **through**, free space was seen through the place of the surface: evidence that the
-  object is gone;
+- every returning pixel within `patch_px` of its pixel reads beyond z + m: **through**, free space was
+  seen through the place of the surface: evidence that the object is gone;
 - d < z − m: **occluded** by something in front (or by the object's own near side): no evidence;
+- no return at its pixel (d = 0): **unseen**: expected, but not observed;
 - otherwise: its own pixel reads beyond but a neighbour does not (a grazing surface, see below):
-  **hit**; no return but a neighbour is near: **occluded** (no evidence either way).
+  **hit**.
+
+No evidence from nothing: a pixel that returns nothing is not evidence that space is free. Dark,
+shiny and transparent surfaces return nothing, and so do random dropouts and everything beyond the
+range: a box whose surface stops returning depth (or a camera that loses it) must not be removed, nor
+carved. Unseen points count in an object's expected-visible surface, so the fraction of it seen through
+(`VisibilityCounts.through_fraction`, which gates the forced outlier) is the fraction with real returns
+from behind it: a dark box in plain view has only a rim seen through (its silhouette is a pixel or two
+off its mapped surface) and keeps its belief; a box taken away is seen through wherever the floor or
+something else returns behind its place. Beyond the range and above the horizon nothing returns, so a
+place seen only against the sky gives no evidence at all: it is noticed from where the floor shows
+behind it (`bench/mapping_rate.py` measures how fast).
 
 The patch matters on surfaces seen at a grazing angle (a wall along the corridor the robot drives
 down): a surface voxel whose centroid sits a centimetre or two off the true surface projects onto a
@@ -38,27 +49,35 @@ import numpy as np
 from core.mapping.floor import floor_threshold
 from core.types import DepthFrame
 
-NOT_EXPECTED, HIT, THROUGH, OCCLUDED = 0, 1, 2, 3
+NOT_EXPECTED, HIT, THROUGH, OCCLUDED, UNSEEN = 0, 1, 2, 3, 4
 
 
 @dataclass(frozen=True)
 class VisibilityCounts:
-    """Per object and frame: surface points hit, seen through and occluded (out of `total`)."""
+    """Per object and frame: surface points hit, seen through, occluded and unseen (no return), of `total`."""
 
     hit: int
     through: int
     occluded: int
     total: int
+    unseen: int = 0
 
     @property
     def expected(self) -> int:
-        """Points that should have been seen: in the frustum, within range, not occluded."""
-        return self.hit + self.through
+        """Points that should have been seen: in the frustum, within range, not occluded (seen or not)."""
+        return self.hit + self.through + self.unseen
 
     @property
     def through_fraction(self) -> float:
-        """Fraction of the expected-visible surface with free space seen through it."""
+        """Fraction of the expected-visible surface with free space seen through it (unseen points count
+        against it: they might be a surface that returns nothing)."""
         return self.through / self.expected if self.expected else 0.0
+
+    @property
+    def through_of_returns(self) -> float:
+        """Of the expected-visible points whose pixels returned depth, the fraction seen through."""
+        returned = self.hit + self.through
+        return self.through / returned if returned else 0.0
 
 
 @dataclass(frozen=True)
@@ -102,7 +121,7 @@ class FrameView:
         return abs(c[0]) <= half_x * z + slack and abs(c[1]) <= half_y * z + slack
 
     def classify(self, points: np.ndarray) -> np.ndarray:
-        """Label every world point (N×3): NOT_EXPECTED, HIT, THROUGH or OCCLUDED."""
+        """Label every world point (N×3): NOT_EXPECTED, HIT, THROUGH, OCCLUDED or UNSEEN."""
         labels = np.zeros(len(points), dtype=np.int8)
         if len(points) == 0:
             return labels
@@ -120,8 +139,9 @@ class FrameView:
         d = self.beyond_floor(raw, vi, ui)
         zi, mi = z[idx], margin[idx]
         lab = np.full(len(idx), HIT, dtype=np.int8)
-        lab[(d < zi - mi) | (raw <= 0.0)] = OCCLUDED  # no return next to a near one: no evidence either way
-        beyond = np.nonzero(d > zi + mi)[0]
+        lab[d < zi - mi] = OCCLUDED
+        lab[raw <= 0.0] = UNSEEN  # no return is no evidence, of the surface or of free space
+        beyond = np.nonzero((d > zi + mi) & (raw > 0.0))[0]
         if len(beyond):
             near = self.patch_min(vi[beyond], ui[beyond])
             lab[beyond[near > zi[beyond] + mi[beyond]]] = THROUGH
@@ -129,7 +149,8 @@ class FrameView:
         return labels
 
     def beyond_floor(self, d: np.ndarray, v: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Depths (m) at pixels (v, u) with no return and floor returns made infinite."""
+        """Depths (m) at pixels (v, u) with no return and floor returns made infinite (a floor return is free
+        space seen up to the floor: beyond whatever the map has above it)."""
         K, R = self.K, self.R_cw
         ray_dz = R[0, 2] * (u - K[0, 2]) / K[0, 0] + R[1, 2] * (v - K[1, 2]) / K[1, 1] + R[2, 2]  # world z, unit depth
         height = self.camera_position[2] + d * ray_dz
@@ -137,8 +158,9 @@ class FrameView:
         return np.where((d > 0.0) & ~floor, d, np.inf)
 
     def patch_min(self, v: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Nearest return (m) within ±`patch_px` pixels of each pixel (v, u); no return and the floor count as
-        infinitely far."""
+        """Nearest return (m) within ±`patch_px` pixels of each pixel (v, u); the floor counts as infinitely far,
+        and so do pixels without a return (they say nothing, so they cannot hold a surface point back from
+        being seen through by its returning neighbours)."""
         r = self.patch_px
         h, w = self.depth.shape
         off = np.arange(-r, r + 1)
@@ -150,5 +172,6 @@ class FrameView:
 
 def count(labels: np.ndarray) -> VisibilityCounts:
     """Tally of a label array from `FrameView.classify`."""
-    n = np.bincount(labels, minlength=4)
-    return VisibilityCounts(hit=int(n[HIT]), through=int(n[THROUGH]), occluded=int(n[OCCLUDED]), total=len(labels))
+    n = np.bincount(labels, minlength=5)
+    return VisibilityCounts(hit=int(n[HIT]), through=int(n[THROUGH]), occluded=int(n[OCCLUDED]), total=len(labels),
+                            unseen=int(n[UNSEEN]))

@@ -1,8 +1,11 @@
 """Simulated depth cameras: MuJoCo off-screen depth renders turned into `DepthFrame`s.
 
 Depth is planar (along the optical axis) in metres; pixels beyond `range_m` or nearer than `near_m`
-read 0 ("no return"), as real depth cameras report. Optional noise grows with depth squared, as for
-a stereo camera: std = noise_std_m · (z / 1 m)².
+read 0 ("no return"), as real depth cameras report. A camera's `SensorParams` add what a real camera
+does (`depth_artefacts.py`): surfaces that return nothing (dark boxes, found with a segmentation render
+only when the scene has one), flying pixels at depth edges, noise growing with depth squared, random
+dropouts. `SensorParams.ideal()` (the default for a bare camera) renders exact depth; `SimRobot` gives
+its cameras the world's sensor model.
 """
 
 from __future__ import annotations
@@ -12,7 +15,8 @@ import math
 import mujoco
 import numpy as np
 
-from core.params import CameraParams
+from core.params import CameraParams, SensorParams
+from core.sim.depth_artefacts import sense
 from core.sim.world import SimWorld
 from core.types import DepthFrame
 
@@ -26,10 +30,12 @@ def intrinsics(params: CameraParams) -> np.ndarray:
 class DepthCamera:
     """One camera of the world (`hand` or `base`); renders from the thread that created nothing else GL."""
 
-    def __init__(self, world: SimWorld, name: str, params: CameraParams, seed: int = 0) -> None:
+    def __init__(self, world: SimWorld, name: str, params: CameraParams, seed: int = 0,
+                 sensor: SensorParams | None = None) -> None:
         self.world = world
         self.name = name
         self.params = params
+        self.sensor = sensor or SensorParams.ideal()
         self.K = intrinsics(params)
         self._rng = np.random.default_rng(seed)
         self._renderer: mujoco.Renderer | None = None
@@ -47,32 +53,43 @@ class DepthCamera:
         self._renderer.enable_depth_rendering()
         self._version = self.world.model_version
 
-    def render(self) -> DepthFrame:
-        """Render the current scene as a `DepthFrame` stamped with sim time."""
+    def capture(self) -> tuple[float, np.ndarray]:
+        """(sim time, depth image in m as the camera reports it: 0 where nothing returned)."""
         with self.world.lock:
             self._ensure()
             self._renderer.update_scene(self.world.data, camera=f"camera_{self.name}", scene_option=self._options)
             depth = self._renderer.render().astype(np.float64)
-            T = self.world.robot.camera_pose(self.world.state().q, self.name)
+            dark = self.world.dark_geoms()
+            no_return = None
+            if len(dark):
+                seg = self._segmentation()
+                no_return = (seg[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM)) & np.isin(seg[..., 0], dark)
             t = self.world.time
-        no_return = (depth > self.params.range_m) | (depth < self.params.near_m)
-        if self.params.noise_std_m > 0.0:  # noise on real returns only: the sky at 50 m must not land in range
-            depth = depth + self._rng.normal(0.0, 1.0, depth.shape) * self.params.noise_std_m * depth**2
-            no_return |= (depth > self.params.range_m) | (depth < self.params.near_m)
-        depth[no_return] = 0.0
+        return t, sense(depth, self.sensor, self.params.near_m, self.params.range_m, self._rng, no_return)
+
+    def frame(self, t: float, depth: np.ndarray, T_world_camera: np.ndarray) -> DepthFrame:
+        """A `DepthFrame` of a captured image, stamped t, at the camera pose the robot believes."""
         return DepthFrame(t=t, camera=self.name, depth=depth.astype(np.float32), K=self.K.copy(),
-                          T_world_camera=T, range_m=self.params.range_m)
+                          T_world_camera=T_world_camera, range_m=self.params.range_m)
+
+    def render(self) -> DepthFrame:
+        """Capture now, stamped with sim time, at the camera's true pose."""
+        t, depth = self.capture()
+        return self.frame(t, depth, self.world.robot.camera_pose(self.world.state().q, self.name))
+
+    def _segmentation(self) -> np.ndarray:
+        """MuJoCo's segmentation render (H×W×2: object id, object type) of the current scene (world lock held)."""
+        if self._seg_renderer is None or self._version != self.world.model_version:
+            self._ensure()
+            self._seg_renderer = mujoco.Renderer(self.world.model, self.params.height_px, self.params.width_px)
+            self._seg_renderer.enable_segmentation_rendering()
+        self._seg_renderer.update_scene(self.world.data, camera=f"camera_{self.name}", scene_option=self._options)
+        return self._seg_renderer.render()
 
     def render_box_ids(self) -> np.ndarray:
         """Ground-truth segmentation (tests only): per pixel the box id, '' for anything else."""
         with self.world.lock:
-            if self._seg_renderer is None or self._version != self.world.model_version:
-                self._ensure()
-                self._seg_renderer = mujoco.Renderer(self.world.model, self.params.height_px, self.params.width_px)
-                self._seg_renderer.enable_segmentation_rendering()
-            self._seg_renderer.update_scene(self.world.data, camera=f"camera_{self.name}",
-                                            scene_option=self._options)
-            seg = self._seg_renderer.render()
+            seg = self._segmentation()
             geom_types = seg[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM)
             lookup = {int(g): self.world.box_id_of_geom(int(g)) or "" for g in np.unique(seg[..., 0][geom_types])}
         out = np.full(seg.shape[:2], "", dtype=object)

@@ -23,12 +23,14 @@ PAPER_BOX_M = 0.6
 
 @dataclass(frozen=True)
 class Box:
-    """A rigid box: centre `position` (m), full `size` (m), `yaw` (rad) about the world z axis."""
+    """A rigid box: centre `position` (m), full `size` (m), `yaw` (rad) about the world z axis; a `dark` box's
+    surface returns no depth (black, shiny or transparent: depth cameras see nothing there)."""
 
     id: str
     position: tuple[float, float, float]
     size: tuple[float, float, float] = (PAPER_BOX_M, PAPER_BOX_M, PAPER_BOX_M)
     yaw: float = 0.0
+    dark: bool = False
 
     def pose(self) -> np.ndarray:
         """4×4 world pose of the box centre."""
@@ -78,6 +80,8 @@ class BoxModel(BaseModel):
     position: _Vec3
     size: _Vec3 = (PAPER_BOX_M, PAPER_BOX_M, PAPER_BOX_M)
     yaw: float = 0.0
+    dark: bool = False
+    """Its surface returns no depth to the cameras (the sensor model's surfaces that return nothing)."""
 
     @field_validator("size")
     @classmethod
@@ -108,12 +112,12 @@ class SceneModel(BaseModel):
         return boxes
 
     def to_scene(self) -> Scene:
-        boxes = tuple(Box(b.id, b.position, b.size, b.yaw) for b in self.boxes)
+        boxes = tuple(Box(b.id, b.position, b.size, b.yaw, b.dark) for b in self.boxes)
         return Scene(boxes, self.walls, self.robot_start, self.name, self.goal, dict(self.metadata))
 
     @classmethod
     def from_scene(cls, scene: Scene) -> SceneModel:
-        boxes = [BoxModel(id=b.id, position=b.position, size=b.size, yaw=b.yaw) for b in scene.boxes]
+        boxes = [BoxModel(id=b.id, position=b.position, size=b.size, yaw=b.yaw, dark=b.dark) for b in scene.boxes]
         return cls(name=scene.name, walls=scene.walls, robot_start=scene.robot_start, goal=scene.goal,
                    metadata=scene.metadata, boxes=boxes)
 

@@ -23,7 +23,7 @@ import numpy as np
 from core.params import SimParams
 from core.robot.model import RobotModel
 from core.sim.scene import Box, Scene
-from core.sim.world_spec import PARKED_Z_M, add_box_slots, build_world_spec, wall_boxes
+from core.sim.world_spec import PARKED_Z_M, add_box_slots, box_rgba, build_world_spec, wall_boxes
 from core.types import RobotState
 
 log = logging.getLogger(__name__)
@@ -60,6 +60,8 @@ class SimWorld:
         self.params = params or SimParams()
         self.lock = threading.RLock()
         self.model_version = 0
+        self.placements = 0
+        """Counts `set_robot` teleports: a robot's odometry restarts from the true pose after one."""
         self._slots = self.params.box_pool
         self.spec = build_world_spec(self.robot, self.params, self._slots)
         self.model = self.spec.compile()
@@ -126,6 +128,7 @@ class SimWorld:
             self.data.qvel[self._vadr] = 0.0 if v is None else v
             self.data.ctrl[:] = 0.0
             mujoco.mj_forward(self.model, self.data)
+            self.placements += 1
 
     def set_velocity_command(self, qdot: np.ndarray) -> None:
         """Velocity set-points for the actuators; NaN becomes 0, values are clipped to the limits."""
@@ -209,6 +212,7 @@ class SimWorld:
             self._slot_of[box.id] = slot
             self._boxes[box.id] = box
             self._set_geom_half_size(self._slot_geom[slot], np.array(box.size) / 2)
+            self.model.geom_rgba[self._slot_geom[slot]] = box_rgba(box)
             self._write_pose(slot, box)
             if check_robot:
                 self._reject_if_inside_robot(box.id, undo=lambda: self.remove_box(box.id))
@@ -270,6 +274,7 @@ class SimWorld:
         kv = self.model.actuator_gainprm[:, 0].copy()
         mocap_pos, mocap_quat = self.data.mocap_pos.copy(), self.data.mocap_quat.copy()
         sizes = self.model.geom_size[self._slot_geom].copy()
+        rgba = self.model.geom_rgba[self._slot_geom].copy()
         self.model, self.data = self.spec.recompile(self.model, self.data)
         self.data.mocap_pos[: len(mocap_pos)] = mocap_pos
         self.data.mocap_quat[: len(mocap_quat)] = mocap_quat
@@ -279,8 +284,9 @@ class SimWorld:
         self._free.extend(range(self._slots, self._slots + new_slots))
         self._slots += new_slots
         self._index()
-        for slot in range(n_old):  # recompiling restores the spec's sizes: put the live ones back
+        for slot in range(n_old):  # recompiling restores the spec's sizes and colours: put the live ones back
             self._set_geom_half_size(self._slot_geom[slot], sizes[slot])
+            self.model.geom_rgba[self._slot_geom[slot]] = rgba[slot]
         mujoco.mj_forward(self.model, self.data)
         self.model_version += 1
         log.info("box pool grown to %d slots (recompiled)", self._slots)
@@ -311,6 +317,11 @@ class SimWorld:
                     if dist < best:
                         best, best_id = dist, box_id
             return float(best), best_id
+
+    def dark_geoms(self) -> np.ndarray:
+        """Geom ids of the boxes whose surface returns no depth (`Box.dark`)."""
+        with self.lock:
+            return np.array([self._slot_geom[s] for b, s in self._slot_of.items() if self._boxes[b].dark], dtype=int)
 
     def box_id_of_geom(self, geom: int) -> str | None:
         """Box id of a geom index (for ground-truth segmentation), None for non-box geoms."""

@@ -24,6 +24,8 @@ PARKED_Z_M = -5.0
 _ROBOT_RGBA = (0.55, 0.6, 0.68, 1.0)
 _BASE_RGBA = (0.2, 0.2, 0.22, 1.0)
 _BOX_RGBA = (0.76, 0.6, 0.42, 1.0)
+DARK_BOX_RGBA = (0.08, 0.08, 0.09, 1.0)
+"""Boxes whose surface returns no depth are drawn black."""
 _MJ_FROM_CV = np.diag([1.0, -1.0, -1.0])
 """MuJoCo cameras look along −z with y up; OpenCV cameras along +z with y down."""
 
@@ -140,6 +142,11 @@ def build_world_spec(robot: RobotModel, params: SimParams, box_slots: int) -> mu
     _add_velocity_actuators(spec, robot)
     add_box_slots(spec, 0, box_slots)
     return spec
+
+
+def box_rgba(box: Box) -> tuple[float, float, float, float]:
+    """Colour of a box's geom: black if its surface returns no depth."""
+    return DARK_BOX_RGBA if box.dark else _BOX_RGBA
 
 
 def se3_to_pos_quat(T: pin.SE3 | np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -36,14 +36,14 @@ def test_e1_object_map_forgets_boxes_moved_out_of_view_voxel_map_keeps_them(tmp_
 def test_e2_cbf_keeps_more_clearance_than_edf_and_gamma_orders_it(tmp_path):
     f = e2_cbf_vs_edf.main(["--quick", "--out", str(tmp_path)])
     data = _report(tmp_path, "e2_cbf_vs_edf")
-    assert len(data["trials"]) == 8  # 1 scene × 1 speed × 3 map conditions × 2 constraints + 2 gammas
-    for m in ("ground_truth", "object", "object_delayed"):
+    assert len(data["trials"]) == 10  # 1 scene × 1 speed × 4 map conditions × 2 constraints + 2 gammas
+    for m in ("ground_truth", "object", "object_surface", "object_delayed"):
         for c in ("cbf", "edf"):
             assert f[f"{m}_{c}_success"] == f[f"{m}_{c}_collision_free"] == 1.0
-    assert f["object_cbf_min_clearance_m_median"] > f["object_edf_min_clearance_m_median"]
-    # one scene: only the ends of the sweep are ordered reliably (the full run's 15 scenes are monotone)
-    small, large = f["gamma_0.5_min_clearance_m_median"], f["gamma_4_min_clearance_m_median"]
-    assert small > large >= f["gamma_inf_edf_min_clearance_m_median"]  # large gamma tends to the EDF
+    for m in ("object", "object_surface", "object_delayed"):  # perceived through the sensor model
+        assert f[f"{m}_cbf_min_clearance_m_median"] > f[f"{m}_edf_min_clearance_m_median"]
+    # one scene through the sensor model: the sweep's order shows over the full run's 15 scenes only
+    assert f["gamma_0.5_collision_free"] == f["gamma_4_collision_free"] == 1.0
 
 
 def test_e3_a_box_pushed_too_close_is_hit_one_further_away_is_avoided(tmp_path):

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
-from core.params import CameraParams, SimParams
+from core.params import CameraParams, SensorParams, SimParams
 from core.robot.model import READY_Q, RobotModel
 from core.sim.depth_camera import DepthCamera
 from core.sim.scene import Box, Scene
@@ -13,14 +15,18 @@ from core.types import DepthFrame, Observation
 
 
 class View:
-    """A world with boxes, the robot at a pose, and depth cameras rendering `Observation`s."""
+    """A world with boxes, the robot at a pose, and depth cameras rendering `Observation`s at the true pose.
+
+    The cameras' image effects are `sensor`'s (default: exact depth with `noise_std_m` · z² noise)."""
 
     def __init__(self, robot: RobotModel, boxes: tuple[Box, ...], cameras: tuple[str, ...] = ("hand", "base"),
-                 noise_std_m: float = 0.0, q: np.ndarray | None = None, seed: int = 0) -> None:
+                 noise_std_m: float = 0.0, q: np.ndarray | None = None, seed: int = 0,
+                 sensor: SensorParams | None = None) -> None:
         self.world = SimWorld(robot, SimParams(), Scene(boxes))
         self.world.set_robot(READY_Q if q is None else q)
-        cam = CameraParams(noise_std_m=noise_std_m)
-        self.cameras = [DepthCamera(self.world, name, cam, seed=seed + i) for i, name in enumerate(cameras)]
+        sensor = sensor or replace(SensorParams.ideal(), depth_noise_m=noise_std_m)
+        self.cameras = [DepthCamera(self.world, name, CameraParams(), seed=seed + i, sensor=sensor)
+                        for i, name in enumerate(cameras)]
         self.frames = 0
 
     def frame_set(self) -> tuple[DepthFrame, ...]:

@@ -160,3 +160,34 @@ def test_removal_latency_with_the_papers_cap_matches_method_md():
 def test_our_cap_and_weight_remove_a_long_seen_box_within_five_clear_frames():
     # MappingParams: cap 10, w_max 3 (full clear view): saturation costs at most 5 frames.
     assert max(_forced_outliers_to_removal(n, 10.0, 3.0) for n in (1, 3, 30, 100, 600)) == 5
+
+
+@pytest.mark.parametrize(("alpha", "beta", "s", "k"),
+                         [(2.0, 1.0, 0.0, 0.0), (7.5, 0.3, 1.0, 2.0), (0.4, 9.0, 0.0, 3.0)])
+def test_branch_weights_equal_method_md_eta_by_log_beta(alpha, beta, s, k):
+    post = Posterior(mu=0.02, sigma=0.3, alpha=alpha, beta=beta)
+    log_b0 = betaln(alpha, beta)
+    eta1 = math.exp(betaln(alpha + k * s + 1, beta + k * (1 - s)) - log_b0)
+    eta2 = math.exp(betaln(alpha + k * s, beta + k * (1 - s) + 1) - log_b0)
+    for delta in (0.0, 0.3, 1.5):
+        c1 = eta1 * math.exp(-0.5 * (delta - 0.02) ** 2 / 0.13) / math.sqrt(2 * math.pi * 0.13)
+        c2 = eta2 / 8.0
+        assert branch_weights(post, delta, s, k, 0.2, 4.0) == pytest.approx((c1 / (c1 + c2), c2 / (c1 + c2)), rel=1e-12)
+
+
+def test_twenty_thousand_inliers_under_the_cap_never_underflow():
+    # 400 s of a still box at 50 updates/s: beta shrinks by ~10/11 an update and reached 0 (then NaN, read as a
+    # pure outlier: E[v] fell to 0.91). It must stay a finite belief with E[v] ≥ 0.99 after the first updates.
+    rng = np.random.default_rng(0)
+    post, lowest = PRIOR, 1.0
+    for i in range(20_000):
+        post = cap(update(post, float(rng.normal(0.0, 0.02))), 10.0)
+        assert math.isfinite(post.alpha) and math.isfinite(post.beta) and post.beta > 0.0
+        if i >= 50:
+            lowest = min(lowest, post.consistency)
+    assert lowest >= 0.99
+    # and the box still goes when its place is seen through: the floor keeps the forced outliers effective
+    n = 0
+    while post.consistency >= 0.4:
+        post, n = cap(forced_outlier(post, weight=3.0), 10.0), n + 1
+    assert n <= 5

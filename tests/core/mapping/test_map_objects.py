@@ -1,6 +1,8 @@
 """ObjectMapper on rendered MuJoCo depth frames: boxes found with their pose and extent, new boxes
 appear at once, the robot and the floor are not objects, the EDF matches the true box."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from rendered_views import View, yaw_error, yaw_of
@@ -10,6 +12,7 @@ from core.mapping.depth_points import frame_points, unproject
 from core.mapping.scene_points import ScenePoints
 from core.mapping.segmentation import segment, voxelise
 from core.mapping.self_filter import SelfFilter
+from core.params import SensorParams
 from core.sim.ground_truth import box_signed_distance, ground_truth_edf
 from core.sim.scene import Box
 from core.types import ObjectStatus, Observation, RobotState
@@ -36,10 +39,14 @@ def test_depth_points_lie_on_the_seen_box(robot):
     view.close()
 
 
-@pytest.mark.parametrize("noise", [0.0, 0.003])
-def test_boxes_in_view_found_with_pose_and_extent_within_5cm(robot, params, noise):
+@pytest.mark.parametrize(("sensor", "tol"), [(SensorParams.ideal(), 0.05),
+                                            (replace(SensorParams.ideal(), depth_noise_m=0.003), 0.05),
+                                            (SensorParams(), 0.07)], ids=["exact", "noise", "camera model"])
+def test_boxes_in_view_found_with_pose_within_5cm_and_extent_within_tol(robot, params, sensor, tol):
+    # with the camera model (depth std 0.005 z², 2.2 cm at the far box) a voxel of noise beyond a face may
+    # widen the box: 7 cm there
     boxes = (Box("a", (1.8, -0.5, 0.3), yaw=0.3), Box("b", (2.1, 0.7, 0.4), size=(0.4, 0.5, 0.8), yaw=-0.2))
-    view = View(robot, boxes, noise_std_m=noise)
+    view = View(robot, boxes, sensor=sensor)
     mapper = ObjectMapper(robot, params)
     assert isinstance(mapper, WorldMap)
     for _ in range(5):
@@ -52,7 +59,7 @@ def test_boxes_in_view_found_with_pose_and_extent_within_5cm(robot, params, nois
         assert np.linalg.norm(obj.pose[:3, 3] - np.array(box.position)) < 0.05
         assert yaw_error(yaw_of(obj.pose), box.yaw) < np.radians(5)
         # extent: compare sorted footprint sides (a box's axes are defined modulo 90°)
-        assert np.all(np.abs(np.sort(obj.extent[:2]) - np.sort(box.size[:2])) < 0.05)
+        assert np.all(np.abs(np.sort(obj.extent[:2]) - np.sort(box.size[:2])) < tol)
         assert abs(obj.extent[2] - box.size[2]) < 0.05
         assert obj.consistency > 0.66 and obj.observations >= 5
     view.close()

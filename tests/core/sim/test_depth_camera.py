@@ -1,15 +1,20 @@
 """Depth cameras: known distances, poses equal to FK, range cut-off, noise, segmentation."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from core.params import CameraParams, SimParams
+from core.params import CameraParams, SensorParams, SimParams
 from core.robot.model import READY_Q
 from core.sim.depth_camera import DepthCamera
 from core.sim.scene import Box, Scene
 from core.sim.world import SimWorld
+
+
+def _noise_only(coeff_m: float) -> SensorParams:
+    return replace(SensorParams.ideal(), depth_noise_m=coeff_m)
 
 
 def _wall_ahead(world: SimWorld, x_face: float) -> None:
@@ -58,7 +63,7 @@ def test_range_cutoff_and_noise(robot):
     world.set_robot(READY_Q)
     far = DepthCamera(world, "base", CameraParams(range_m=1.0))
     assert far.render().depth.max() <= 1.0
-    noisy = DepthCamera(world, "base", CameraParams(noise_std_m=0.01), seed=4)
+    noisy = DepthCamera(world, "base", CameraParams(), seed=4, sensor=_noise_only(0.01))
     clean = DepthCamera(world, "base", CameraParams())
     d_noisy, d_clean = noisy.render().depth, clean.render().depth
     both = (d_noisy > 0) & (d_clean > 0)
@@ -102,5 +107,5 @@ def test_noise_never_brings_far_pixels_into_range(robot):
     world.load_scene(Scene((Box("near", (1.8, 0.0, 0.3)),)))
     world.set_robot(READY_Q)
     clean = DepthCamera(world, "base", CameraParams()).render().depth
-    noisy = DepthCamera(world, "base", CameraParams(noise_std_m=0.05), seed=1).render().depth
+    noisy = DepthCamera(world, "base", CameraParams(), seed=1, sensor=_noise_only(0.05)).render().depth
     assert np.all(noisy[clean == 0] == 0)  # sky and far floor stay "no return"

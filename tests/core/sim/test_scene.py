@@ -5,6 +5,7 @@ import pytest
 
 from core.sim.scene import (
     PAPER_BOX_M,
+    Box,
     _passable,
     aisle_scene,
     load_scene,
@@ -49,7 +50,9 @@ def test_aisle_is_a_closed_ring():
 
 
 def test_yaml_round_trip(tmp_path):
-    for scene in (random_scene(2), aisle_scene()):
+    dark = random_scene(3).with_box(Box("black", (1.0, 2.0, 0.3), dark=True))  # returns no depth
+    assert parse_scene(scene_to_yaml(dark)).box("black").dark
+    for scene in (random_scene(2), aisle_scene(), dark):
         path = tmp_path / "s.yaml"
         save_scene(scene, path)
         assert load_scene(path) == scene

@@ -2,10 +2,8 @@
 
 import numpy as np
 
-from core.params import SimParams
 from core.sim.scene import Box, Scene
 from core.sim.sim_robot import SimRobot
-from core.sim.world import SimWorld
 from core.types import RobotBackend
 
 
@@ -49,11 +47,3 @@ def test_bad_command_counted_and_stops(world):
     robot.step(0.3)
     assert robot.rejected_commands == 2
     assert abs(robot.observe().state.v[0]) < 0.02
-
-
-def test_odometry_noise(robot):
-    world = SimWorld(robot, SimParams(odometry_noise_std_m=0.05))
-    sim = SimRobot(world, cameras=())
-    poses = np.array([sim.observe().odometry.pose for _ in range(400)])
-    assert 0.04 < poses[:, 0].std() < 0.06
-    assert np.all(poses[:, 2] == poses[0, 2])
