@@ -5,13 +5,13 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from rendered_views import View
 
 from core.mapping import ObjectMapper, VoxelMap
 from core.params import SensorParams
 from core.robot.model import READY_Q
 from core.sim.ground_truth import box_signed_distance
 from core.sim.scene import Box
+from tests.core.mapping.rendered_views import View
 
 NOISE = 0.005  # depth std = 0.005 · z² (2 cm at 2 m)
 OUT_OF_SIGHT = (-3.0, 3.0, 0.3)

@@ -6,12 +6,12 @@ import math
 
 import numpy as np
 import pytest
-from rendered_views import View
 
 from core.mapping import ObjectMapper
 from core.robot.model import READY_Q
 from core.sim.ground_truth import ground_truth_edf, scene_signed_distance
 from core.sim.scene import Box, aisle_scene
+from tests.core.mapping.rendered_views import View
 
 NOISE = 0.005
 

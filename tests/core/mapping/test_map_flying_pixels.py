@@ -4,13 +4,13 @@ the surfaces stay."""
 from dataclasses import replace
 
 import numpy as np
-from rendered_views import View
 
 from core.mapping.depth_points import unproject
 from core.mapping.flying_pixels import depth_span, without_flying_pixels
 from core.params import MappingParams, SensorParams
 from core.sim.ground_truth import box_signed_distance
 from core.sim.scene import Box
+from tests.core.mapping.rendered_views import View
 
 BOX = Box("a", (1.8, 0.0, 0.3), yaw=0.3)
 WALL = Box("wall", (3.2, 0.0, 1.0), (0.2, 6.0, 2.0))

@@ -5,7 +5,6 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from rendered_views import View, yaw_error, yaw_of
 
 from core.mapping import ObjectMapper, WorldMap
 from core.mapping.depth_points import frame_points, unproject
@@ -16,6 +15,7 @@ from core.params import SensorParams
 from core.sim.ground_truth import box_signed_distance, ground_truth_edf
 from core.sim.scene import Box
 from core.types import ObjectStatus, Observation, RobotState
+from tests.core.mapping.rendered_views import View, yaw_error, yaw_of
 
 
 def _match(snapshot, box: Box):

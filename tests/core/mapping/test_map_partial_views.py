@@ -6,7 +6,6 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from rendered_views import View
 
 from core.mapping import ObjectMapper
 from core.mapping.box_fit import BoxFit
@@ -14,6 +13,7 @@ from core.mapping.completion import Completion
 from core.params import SensorParams
 from core.robot.model import READY_Q
 from core.sim.scene import Box
+from tests.core.mapping.rendered_views import View
 
 
 @pytest.fixture(params=["noise", "camera model"])
