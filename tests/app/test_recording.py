@@ -32,7 +32,7 @@ def recorded(tmp_path_factory) -> tuple[Path, Recorder]:
     """A 3 s lockstep run with the object map, recorded with depth frames, small chunks."""
     path = tmp_path_factory.mktemp("rec") / "run.mcap"
     rt = Runtime(RuntimeConfig(map_kind="object"), scene=Scene((Box("a", (2.0, 0.5, 0.3)),)),
-                 sequence=TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=1.0, y=0.0))]))
+                 sequence=TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=3.5, y=-1.0))]))  # still driving at 3 s
     rec = Recorder(path, points_every=2, depth_frames=True, chunk_bytes=64 * 1024)
     rt.subscribe(rec)
     rt.run_lockstep(3.0, publish_every=1)

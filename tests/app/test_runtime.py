@@ -123,7 +123,7 @@ def test_live_run_control_and_subscribers():
 
 def test_recording_round_trip(tmp_path):
     rt = Runtime(RuntimeConfig(map_kind="object"), scene=Scene((Box("a", (2.0, 0.5, 0.3)),)),
-                 sequence=TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=1.0, y=0.0))]))
+                 sequence=TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=3.5, y=-1.0))]))  # still driving at 3 s
     path = tmp_path / "run.mcap"
     rec = Recorder(path, points_every=2)
     rt.subscribe(rec)
