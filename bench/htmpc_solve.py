@@ -38,7 +38,7 @@ from bench.priority_leak import priority_figures
 from bench.report import bench_args, percentile, write_result
 from core.htmpc import HTMPC
 from core.htmpc.ipopt_reference import IpoptReference
-from core.params import HTMPCParams
+from core.params import HTMPCParams, SensorParams
 from core.robot.model import READY_Q, RobotModel
 from core.sim.collision_cover import cover_gaps
 from core.sim.ground_truth import ground_truth_edf
@@ -95,7 +95,7 @@ def closed_loop(robot: RobotModel, params: HTMPCParams, levels: int, seconds: fl
     q0 = READY_Q.copy()
     q0[:3] = scene.robot_start
     world.set_robot(q0)
-    sim = SimRobot(world, cameras=())
+    sim = SimRobot(world, cameras=(), sensor=SensorParams.ideal())
     seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=scene.goal[0], y=scene.goal[1], yaw_deg=0.0),
                                              timeout_s=1e3)])
     sequencer = Sequencer(robot, seq, n_nodes=params.N, dt=params.dt_s)

@@ -19,6 +19,7 @@ import pinocchio as pin
 import core.sim  # noqa: F401  (GL backend first)
 from core.htmpc import HTMPC
 from core.htmpc.so3 import log3
+from core.params import SensorParams
 from core.robot.model import READY_Q, RobotModel
 from core.sim.ground_truth import ground_truth_edf
 from core.sim.scene import Box, Scene
@@ -54,7 +55,7 @@ def _run(robot: RobotModel, order: tuple[str, ...], scene: Scene, seconds: float
     """Configurations at 10 Hz of a lockstep closed loop toward the references of `order`, and its contacts."""
     world = SimWorld(robot, scene=scene)
     world.set_robot(READY_Q)
-    sim = SimRobot(world, cameras=())
+    sim = SimRobot(world, cameras=(), sensor=SensorParams.ideal())
     controller = HTMPC(robot)
     controller.enforce_timeout = False
     qs, plan = [], None

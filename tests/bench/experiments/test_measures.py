@@ -60,8 +60,11 @@ def test_approach_speed_is_how_fast_the_clearance_shrinks_not_the_speed():
     from app.run_log import RunLog
     from bench.experiments.measures import approach_speeds
 
+    from core.types import RobotState
+
     log = RunLog()
-    log.t = [0.0, 0.1, 0.2, 0.3, 0.4, 0.5]
-    log.min_distance_m = [0.9, 0.5, 0.45, 0.45, 0.5, 2.0]  # approaches, then drives past, then leaves
+    distances = [0.9, 0.5, 0.45, 0.45, 0.5, 2.0]  # approaches, then drives past, then leaves
+    for k, d in enumerate(distances):
+        log.record(RobotState(0.1 * k, np.zeros(9), np.zeros(9)), None, d, 0, "running", 0, np.zeros(9), {})
     rates = approach_speeds(log, near_m=0.6)
     np.testing.assert_allclose(rates, [0.5, 0.0, -0.5, -15.0])

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from core.htmpc import HTMPC
+from core.params import SensorParams
 from core.sim.ground_truth import ground_truth_edf
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
@@ -29,7 +30,7 @@ def run(world: SimWorld, controller: HTMPC, refs: References | Callable[[float],
     """Drive the world for `seconds`; the EDF is the simulator's exact one around the robot.
     `before_control(world, state)` runs before every control step (a test's scene edits)."""
     controller.enforce_timeout = False  # lockstep: simulated time waits for the solver
-    sim = SimRobot(world, cameras=())
+    sim = SimRobot(world, cameras=(), sensor=SensorParams.ideal())  # the controller's test: exact odometry
     log = LoopLog()
     plan = None
     steps = int(round(seconds / 0.01))

@@ -6,7 +6,7 @@ import pytest
 
 from core.htmpc import HTMPC
 from core.htmpc.safety import brake_along
-from core.params import HTMPCParams
+from core.params import HTMPCParams, SensorParams
 from core.robot.model import READY_Q
 from core.sim.ground_truth import ground_truth_edf
 from core.sim.scene import Box, Scene
@@ -94,7 +94,7 @@ def test_solver_failures_in_closed_loop_stop_the_robot(robot):
     """A robot driving at speed whose map turns to NaN comes to rest within the deceleration limits."""
     world = SimWorld(robot, scene=Scene((Box("b", (5.0, 2.0, 0.3)),)))
     world.set_robot(READY_Q)
-    sim = SimRobot(world, cameras=())
+    sim = SimRobot(world, cameras=(), sensor=SensorParams.ideal())
     c = lockstep(HTMPC(robot))
     plan = None
     speeds = []
@@ -154,7 +154,7 @@ def test_qp_failure_in_closed_loop_brakes_along_the_previous_plan(robot):
     trajectory within the joint bounds starts there (the QP is infeasible). The robot stops along its plan."""
     world = SimWorld(robot, scene=Scene())
     world.set_robot(READY_Q)
-    sim = SimRobot(world, cameras=())
+    sim = SimRobot(world, cameras=(), sensor=SensorParams.ideal())
     c = lockstep(HTMPC(robot))
     plan, plans, commands, base_xy = None, [], [], []
     for k in range(500):
