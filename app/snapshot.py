@@ -1,6 +1,6 @@
 """What the runtime publishes to its subscribers (the UI, the bridge, recorders): one frozen value.
 
-Subscribers read snapshots only; they never reach into the controller or the map (DESIGN.md).
+Subscribers read snapshots only; they never reach into the controller or the map (docs/design.md).
 """
 
 from __future__ import annotations

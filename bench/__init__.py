@@ -1,1 +1,4 @@
-"""Benchmarks and experiment reproductions; each runs alone as `python -m bench.<name>` (BENCH.md)."""
+"""Benchmarks and experiment reproductions; each runs alone as `python -m bench.<name>`.
+
+Conventions: docs/design.md, "Benchmarks".
+"""

@@ -1,4 +1,4 @@
-"""Writing benchmark results the way BENCH.md asks: a printed table and `bench/results/<name>.json`."""
+"""Writing benchmark results as docs/design.md, "Benchmarks" asks: a table and `bench/results/<name>.json`."""
 
 from __future__ import annotations
 

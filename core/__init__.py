@@ -1,4 +1,4 @@
 """Core of Perceptive HTMPC Studio: robot model, controller, mapping and simulation.
 
-`core` knows no application, task files or benchmarks (see DESIGN.md).
+`core` knows no application, task files or benchmarks (docs/design.md, "Layers").
 """

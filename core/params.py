@@ -1,7 +1,7 @@
-"""Tunables of the method, in one place, with the paper's names and units (DESIGN.md "Defaults").
+"""Tunables of the method, in one place, with the paper's names and units (docs/design.md, "Parameters").
 
 Each component takes its own frozen parameter object; `dataclasses.replace` makes a variant.
-Values follow METHOD.md (the HTMPC authors' configuration and POCD's reference values) unless a
+Values follow docs/method.md, "Settings" (the HTMPC authors' configuration and POCD's reference values) unless a
 docstring says why we differ.
 """
 
@@ -119,7 +119,7 @@ class SimParams:
 
 @dataclass(frozen=True)
 class HTMPCParams:
-    """Lexicographic MPC and CBF (METHOD.md "Reference controller settings")."""
+    """Lexicographic MPC and CBF (docs/method.md, "Settings": the HTMPC authors' configuration)."""
 
     N: int = 10
     dt_s: float = 0.3
@@ -135,8 +135,9 @@ class HTMPCParams:
     control step and level 1 settles tol / (1 − ρ) off its optimum (`level_problem.lex_tolerances`)."""
     box_iterations: int = 2
     """Alternating projections per solve that find the base boxes' points closest to the obstacles
-    (`box_barrier.py`). Against a dense sampling of the boxes over random scenes: 2 leave the distance
-    at most 0.6 mm too large in 90 % of cases (1.9 cm at worst), 3 at most 0.4 mm (1.3 cm), at ×1.5 the work."""
+    (`box_barrier.py`). More iterations bring the points closer to the true closest ones at proportionally
+    more work; 2 is where the error became negligible (docs/decisions.md, "Exact barriers for the base's
+    boxes")."""
     slack_linear: float = 50.0
     slack_quadratic: float = 1.0
     slack_groups: str = "body"
@@ -155,14 +156,14 @@ class HTMPCParams:
     """Those iterations stop early once no joint of the plan moved more than this (m or rad) in one."""
     sqp_damping: float = 1e-3
     """Levenberg-Marquardt term ½ λ ‖q_k − q̄_k‖² per node in a real-time iteration (one QP per level from
-    the shifted previous plan). Measured against IPOPT over a closed-loop run: last-level cost gap median
-    0.15 % at 1e-4 (but one plan violated IPOPT's exact collision rows by 1.8 m/s), 0.23 % at 1e-3,
-    1.3 % at 1e-2. It vanishes at convergence (q = q̄)."""
+    the shifted previous plan). Smaller values follow the nonlinear optimum more closely but let a plan
+    overshoot the linearised collision rows; larger ones slow convergence (docs/decisions.md, "Damping of the
+    real-time iteration"). It vanishes at convergence (q = q̄)."""
     sqp_damping_on_switch: float = 1e-2
     """λ when iterating after a switch. Gauss-Newton drops the curvature of the task errors (large while
     the EE is far from its goal), and in the directions only the small J_aux weights hold, iterations
-    cycled with 0.5 rad steps: 1e-4 and 1e-3 never converged, 1e-2 converges in ~20 iterations from rest
-    (1e-1 needs over 40)."""
+    cycled with large steps unless damped this much (docs/decisions.md, "Damping of the real-time
+    iteration")."""
     control_rate_hz: float = 10.0
     command_rate_hz: float = 100.0
     hierarchy: str = "lexicographic"
@@ -180,8 +181,9 @@ class HTMPCParams:
 class MappingParams:
     """Object-level map (POCD), the voxel-level baseline map and the local EDF (core/mapping).
 
-    POCD's reference values (METHOD.md) unless a docstring says why we differ; the removal-speed
-    choice (cap, forced-outlier weight) is argued in `core/mapping/object_mapper.py`.
+    POCD's reference values (docs/method.md, "Settings") unless a docstring says why we differ; the removal-speed
+    choice (cap, forced-outlier weight) is argued in `core/mapping/object_mapper.py`, with its figures in
+    docs/decisions.md ("Removal speed").
     """
 
     # --- depth → points --------------------------------------------------------------------------

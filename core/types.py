@@ -1,4 +1,4 @@
-"""Plain data that crosses package boundaries inside `core` (DESIGN.md, "Data that crosses boundaries").
+"""Plain data that crosses package boundaries inside `core` (docs/design.md, "Data that crosses boundaries").
 
 Frozen dataclasses with numpy fields; no behaviour beyond cheap derived views, except
 `LocalEDF`, whose trilinear `distance`/`gradient` are the interface the controller sees a map by.
@@ -68,7 +68,7 @@ class ObjectStatus(StrEnum):
 
 @dataclass(frozen=True)
 class Posterior:
-    """q(l, v) = N(l | mu, sigma^2) · Beta(v | alpha, beta) of one object (METHOD.md, eq. 1)."""
+    """q(l, v) = N(l | mu, sigma^2) · Beta(v | alpha, beta) of one object (docs/method.md, eq. 1)."""
 
     mu: float = 0.0
     sigma: float = 0.5
@@ -110,7 +110,7 @@ class ObjectMapSnapshot:
 
 @dataclass(frozen=True)
 class LocalEDF:
-    """Signed Euclidean distance field on a regular grid (METHOD.md, 9a–9b).
+    """Signed Euclidean distance field on a regular grid (docs/method.md, 9a–9b).
 
     `values[i, j, k]` is the distance (m) at `origin + voxel * (i, j, k)`, truncated at `cutoff`;
     outside the grid the field is `cutoff` with zero gradient. Queries are vectorised: `p` is (..., 3).

@@ -2,7 +2,7 @@
 
 Each subtask carries its target (a pose, or waypoints ending at one), tolerances, a timeout, a dwell
 time (e.g. a pick-up) and the priority order of the HTMPC costs while it is active: [base, ee] for
-navigation, [ee, base] for manipulation (METHOD.md, HTMPC).
+navigation, [ee, base] for manipulation (docs/method.md, "The hierarchical-task MPC").
 """
 
 from __future__ import annotations

@@ -1,1 +1,1 @@
-"""The studio's browser UI (viser). It reads runtime snapshots only (DESIGN.md)."""
+"""The studio's browser UI (viser). It reads runtime snapshots only (docs/design.md)."""

@@ -1,7 +1,7 @@
 """The files of an experiment report: `<name>.json`, figures (PNG) and `README.md` in `reports/<name>/`.
 
 The JSON holds the run's settings, the machine, the commit, every trial's result and the summary
-figures; the markdown puts our figures beside the paper's (METHOD.md "What the paper measured").
+figures; the markdown puts our figures beside the paper's (docs/method.md, "What the paper measured").
 """
 
 from __future__ import annotations

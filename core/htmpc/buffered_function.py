@@ -1,8 +1,9 @@
 """A casadi `Function` evaluated in place on numpy buffers, optionally compiled with gcc (casadi's JIT).
 
-Measured on this machine (FK + Jacobians of the EE and 14 spheres over 11 nodes): a plain call costs
-0.3 ms of evaluation plus 0.5–0.7 ms converting the `DM` result to numpy; compiled and called through
-casadi's `Function.buffer()` on preallocated numpy arrays the same evaluation takes 0.02 ms.
+A plain call spends most of its time converting the `DM` result to numpy; compiled and called through
+casadi's `Function.buffer()` on preallocated numpy arrays the same evaluation is an order of magnitude
+cheaper (docs/decisions.md, "Kinematics over the horizon in one compiled call"). Kinematics only: the
+HPIPM-backed QP is called normally (a buffered `conic` returned wrong points flagged as successes).
 """
 
 from __future__ import annotations

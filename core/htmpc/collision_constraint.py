@@ -50,8 +50,9 @@ class StepRows:
 
     The rows at the nodes alone let a plan brake gently inside the first 0.3 s interval and still meet them
     (at node 1 the plan may already move away again, and a CBF row admits h < 0 while h grows); the robot
-    executes only that interval's first control period and re-plans, so braking by such plans stops late:
-    3 cm past the planned stop from 0.46 m/s. These rows hold the executed motion itself to the constraint."""
+    executes only that interval's first control period and re-plans, so braking by such plans stops late
+    (docs/decisions.md, "Collision rows at the next control instant"). These rows hold the executed motion
+    itself to the constraint."""
 
     a_a: np.ndarray
     lb: np.ndarray
@@ -72,7 +73,7 @@ def distance_and_gradient(edf: DistanceField, p: np.ndarray) -> tuple[np.ndarray
 
 
 class CollisionConstraint:
-    """Builds the linearised EDF or CBF rows (METHOD.md, eq. 10)."""
+    """Builds the linearised EDF or CBF rows (docs/method.md, eq. 10)."""
 
     def __init__(self, radii: np.ndarray, delta_safe_m: float, gamma: float, kind: str = "cbf",
                  boxes: BoxBarrier | None = None) -> None:

@@ -1,4 +1,4 @@
-"""The perceptive hierarchical-task MPC (METHOD.md, eqs. 6–8 and 10).
+"""The perceptive hierarchical-task MPC (docs/method.md, eqs. 6–8 and 10).
 
 Each control step solves, for the active subtask's task order [T_1 … T_L], a sequence of single-task
 MPCs: level l minimises J_l + J_aux subject to the dynamics, bounds, the collision rows from the EDF
@@ -137,7 +137,7 @@ class HTMPC:
         self.row_names = collision_row_names(robot, boxes)
         self._qps: dict[int, StructuredQP] = {}
         self.slack_group = slack_groups(self.row_names, p.slack_groups)
-        for n_lex in PREBUILT_LEX_ROWS:  # 15–45 ms each: not inside the first control step
+        for n_lex in PREBUILT_LEX_ROWS:  # tens of ms each: not inside the first control step (docs/decisions.md)
             self._qp(n_lex)
         self.trust = np.array([p.trust_region_m] * 2 + [p.trust_region_rad] * 7)
         self.trust_scale = 1.0

@@ -1,4 +1,4 @@
-"""Assemble one level's QP (METHOD.md eqs. 6–8) as non-zero vectors of the structured layout.
+"""Assemble one level's QP (docs/method.md, eqs. 6–8) as non-zero vectors of the structured layout.
 
 Level l minimises  J_l + J_aux  over the horizon, with
   J_l   = Σ_k dt · ½‖e_l,k‖²_Q                  (task cost, Gauss-Newton model e ≈ e0 + J (q − q̄))
@@ -98,7 +98,8 @@ def lex_tolerances(params: HTMPCParams) -> np.ndarray:
 
     A tolerance at node 1 leaks in closed loop: level 2 keeps level 1's error at |e_1*| + tol where level 1
     alone would have moved on, the next step starts from there, and the error settles where level 1's own
-    one-node decrease equals tol (tol / (1 − ρ), 4.5 cm for the base with tol = 0.01, ρ ≈ 0.77)."""
+    one-node decrease equals tol: tol / (1 − ρ), with ρ the contraction of level 1's error per step
+    (docs/decisions.md, "A near-zero (7c) tolerance on the executed node")."""
     tol = np.full((params.N, 1), params.lex_tolerance)
     tol[0] = params.lex_tolerance_first_node
     return tol

@@ -8,8 +8,9 @@ are the collision rows at the next control instant, on a_0 and s_0 only (x_0 is 
 terminal node has no slack variables (HPIPM's casadi interface has no controls at stage N), so the
 node collision rows cover nodes 1…N−1.
 
-Measured trap (FACTS.md): matrices must be passed with their sparse pattern, and the default 1e-8
-residual tolerances make HPIPM run into its iteration limit; 1e-6 converges in ~10 iterations.
+Two traps (docs/decisions.md, "HPIPM through casadi"): matrices must be passed with their sparse
+pattern, or the structure is not detected, and casadi's default 1e-8 residual tolerances make HPIPM run
+into its iteration limit, so they are loosened to 1e-6.
 """
 
 from __future__ import annotations
@@ -27,13 +28,13 @@ NQ, NX = 9, 18
 HPIPM_OPTIONS = {"mode": "speed_abs", "res_g_max": 1e-6, "res_b_max": 1e-6, "res_d_max": 1e-6, "res_m_max": 1e-6,
                  "iter_max": 60, "warm_start": 1}
 """`warm_start` 1: the interior point starts from the primal guess (the linearisation point, or the previous
-level's solution): 7 instead of 12 iterations on a closed-loop run, same costs."""
+level's solution): fewer iterations, same costs (docs/decisions.md, "HPIPM warm start")."""
 RESCUE_MODE = "balance"
 """HPIPM's mode for a second attempt when a solve in `speed_abs` stalls (status 1, iteration limit, or 2,
-minimum step). Every stalled QP of the closed-loop runs and experiments (a primal guess on the boundary of a
-narrow feasible set: the previous level's optimum against its (7c) rows, a warm start at a velocity limit)
-solved in 10–15 iterations in 'balance' (and in 'robust'); a cold start in 'speed_abs' rescued some of them,
-more iterations none. 'balance' is not the default: it costs more per iteration."""
+minimum step): such stalls come from a primal guess on the boundary of a narrow feasible set (the previous
+level's optimum against its (7c) rows, a warm start at a velocity limit), and 'balance' solved every one we
+met where a cold start or more iterations did not (docs/decisions.md, "HPIPM warm start"). It is not the
+default: it costs more per iteration."""
 
 
 @dataclass(frozen=True)
@@ -213,7 +214,7 @@ class StructuredQP:
         t0 = time.perf_counter()
         if not (np.all(np.isfinite(h_nz)) and np.all(np.isfinite(a_nz)) and np.all(np.isfinite(g))):
             return QPSolution(np.full(self.layout.nv, np.nan), False, "non-finite QP data", 0, 0.0)
-        # DM from a list is ~40 % cheaper than from a numpy array (0.18 vs 0.31 ms for A's 3000 non-zeros)
+        # DM from a list is cheaper than from a numpy array (docs/decisions.md, "Building the QP's data")
         args = {"h": ca.DM(self.H_sp, h_nz.tolist()), "g": g, "a": ca.DM(self.A_sp, a_nz.tolist()), "lba": lba,
                 "uba": uba, "lbx": lbx, "ubx": ubx}
         if guess is not None:

@@ -1,4 +1,4 @@
-"""Object-level mapping (POCD), the voxel-level baseline map and the local EDF (METHOD.md).
+"""Object-level mapping (POCD), the voxel-level baseline map and the local EDF (docs/method.md).
 
 `ObjectMapper` and `VoxelMap` implement `WorldMap`; both are built as `Cls(robot, params)`.
 """

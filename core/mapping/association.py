@@ -1,4 +1,4 @@
-"""Data association of segments to mapped objects (METHOD.md, perception step 3).
+"""Data association of segments to mapped objects (docs/method.md, "Perception", step 4).
 
 The cost of segment j for object i is the mean over the segment's points of their distance to the
 object's surface (its submap EDF M_i, or its box faces), each distance truncated at `cap_m`: zero

@@ -1,4 +1,4 @@
-"""POCD consistency update by moment matching (METHOD.md, "Consistency update", eqs. 1–4).
+"""POCD consistency update by moment matching (docs/method.md, eqs. 1–4).
 
 The belief of an object is q(l, v) = N(l | mu, sigma²) · Beta(v | alpha, beta) (eq. 1): l its
 geometric change, v its consistency. A measurement z = (Delta, s) has the likelihood
@@ -16,11 +16,11 @@ Pitfalls measured and handled here:
 - A Delta beyond ±Delta_max given to `update` is clipped to the support's edge (it is then the most
   outlying measurement the model can express), never silently made an inlier.
 - Underflow. Under the cap, every inlier shrinks beta by about cap / (cap + 1): after a few thousand
-  frames of a box in plain view beta is 1e-300 and then 0, and the log-Beta differences of METHOD.md's
-  eta1 and eta2 became inf − inf; the NaN was read as a pure outlier (E[v] of a still box fell to 0.73
-  over 20,000 inlier updates). The normalisation only needs the ratio eta1 / eta2, which is exactly
-  (alpha + k s) / (beta + k (1 − s)) (B(x + 1, y) / B(x, y + 1) = x / y): no Beta functions, no
-  cancellation. alpha and beta are floored at `EVIDENCE_FLOOR` pseudo-counts, so that E[v] and Var[v]
+  frames of a box in plain view beta is 1e-300 and then 0, and the log-Beta differences of the textbook
+  eta1 and eta2 became inf − inf; the NaN was read as a pure outlier, and a still box lost consistency
+  (docs/decisions.md, "Branch weights without Beta functions"). The normalisation only needs the ratio
+  eta1 / eta2, which is exactly (alpha + k s) / (beta + k (1 − s)) (B(x + 1, y) / B(x, y + 1) = x / y): no
+  Beta functions, no cancellation. alpha and beta are floored at `EVIDENCE_FLOOR` pseudo-counts, so that E[v] and Var[v]
   stay defined; a millionth of an observation changes no decision (one forced outlier adds ≥ 1e-2).
 """
 
@@ -63,7 +63,7 @@ def branch_weights(post: Posterior, delta: float, s: float, k: float, tau: float
 def match_beta(alpha: float, beta: float, c1: float, c2: float, s: float, k: float) -> tuple[float, float]:
     """alpha', beta' of the Beta matching E[v] (theta) and E[v²] (S) of the mixture (step 4).
 
-    Algebraically METHOD.md's alpha' = (theta S − theta²)/(theta² − S), beta' = alpha'(1 − theta)/theta,
+    Algebraically the textbook alpha' = (theta S − theta²)/(theta² − S), beta' = alpha'(1 − theta)/theta,
     evaluated through the branch means and variances so that it stays exact when Var[v] = S − theta²
     is tiny (a long run of inliers under the cap drives beta towards 0).
     """

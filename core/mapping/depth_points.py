@@ -1,4 +1,4 @@
-"""Depth image → points in the world (METHOD.md, perception step 1).
+"""Depth image → points in the world (docs/method.md, "Perception", step 1).
 
 Vectorised pinhole unprojection: the unit-depth ray of every used pixel is computed once per
 (intrinsics, image size, stride) and cached; a frame costs one multiply and one rigid transform.

@@ -1,4 +1,4 @@
-"""Floor removal before segmentation (METHOD.md, perception step 2: "drop the floor first").
+"""Floor removal before segmentation (docs/method.md, "Perception", step 2).
 
 The floor is the plane z = 0 of the world (the robot's odometry frame); boxes stand on it. A point
 is floor when it lies below `floor_height_m`, raised by three standard deviations of the depth noise

@@ -2,11 +2,9 @@
 
 A real depth camera's pixels that straddle a depth edge read a depth between the two sides: points
 hanging in free space behind an object's silhouette. Fused into the object they stretch its fitted
-box away from the camera: on frames rendered with the sensor model a 0.4 × 0.5 m box was mapped
-0.43 × 0.58 m, 0.45 × 0.49 m with this filter (0.44 × 0.52 m with depth noise alone; the test of
+box away from the camera (figures in docs/decisions.md, "Flying-pixel filter"; the test of
 `tests/core/mapping/test_map_objects.py` holds every side within 5 cm). Like the veil-point filters of
-real pipelines,
-a used pixel is dropped when the depths returned in its 3 × 3 neighbourhood span more than
+real pipelines, a used pixel is dropped when the depths returned in its 3 × 3 neighbourhood span more than
 
     jump_m + jump_per_m · z + 6 · c · z²
 

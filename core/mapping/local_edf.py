@@ -1,4 +1,4 @@
-"""Local Euclidean distance field around the robot (METHOD.md, 9a–9b), signed.
+"""Local Euclidean distance field around the robot (docs/method.md, 9a–9b), signed.
 
 A grid of `window_m` (x, y centred on the robot; z from the floor up) at `voxel_m`. Occupied grid
 nodes come from the map (inside an object's box, or nearest to an occupied voxel of the baseline).
@@ -11,10 +11,9 @@ the transform of the free mask minus that of the occupied mask, as voxblox's and
 the half voxel puts the zero level between the last occupied and the first free node. Nodes marked
 by surface points (objects mapped by their surface, the baseline's voxels) get the same half voxel:
 the surface lies within half a voxel of its node either way, so this reads a voxel-rounding nearer
-than the truth but never farther. Measured at the robot's spheres over a lap of the aisle: median
-−0.095 m, at most +0.03 m; without the shift for surface nodes the median was −0.045 m but up to
-+0.06 m (optimistic) in places, which a safety filter should not see. Negative
-inside objects, so the gradient there points out. Truncated at ±theta_cutoff; outside the window
+than the truth but never farther: without that shift the field was optimistic in places, which a safety
+filter must not see (docs/decisions.md, "A signed EDF"). Negative inside objects, so the gradient there
+points out. Truncated at ±theta_cutoff; outside the window
 the `LocalEDF` reads theta_cutoff. The transform runs on the window grown by `pad_m` so that objects
 just outside the window still shape the field near its edge.
 """

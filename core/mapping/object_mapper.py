@@ -1,4 +1,4 @@
-"""The object-level map (POCD, METHOD.md "Perception and mapping"): depth frames in, objects out.
+"""The object-level map (POCD, docs/method.md "Perception", eqs. 1–4): depth frames in, objects out.
 
 Per depth frame:
 
@@ -31,8 +31,8 @@ Update rate, cap and evidence weighting (our choice next to POCD's)
 -------------------------------------------------------------------
 POCD updates once per frame, caps alpha and beta at 25 and counts a forced outlier as one outlier.
 From a saturated belief (a box seen for a few seconds) that takes about 35 frames of a clear view of
-the empty place to fall under 0.4 (METHOD.md; `tests/core/mapping/test_map_consistency.py` reproduces
-3, 6 and 35 for boxes seen 1, 3 and 30 times). We keep one update per depth frame and the closed-form
+the empty place to fall under 0.4 (`tests/core/mapping/test_map_consistency.py` reproduces 3, 6 and 35
+for boxes seen 1, 3 and 30 times). We keep one update per depth frame and the closed-form
 update itself, and change two things:
 
 - cap 10 instead of 25: the belief remembers about one second of frames, so saturation costs less;
@@ -46,23 +46,17 @@ update itself, and change two things:
   behind its place; a dark box in plain view, whose pixels return nothing, has f ≈ 0 (only a rim).
 
 From saturation a fully seen-through place then removes the object after 5 frames (cap 10, w = 3),
-a box seen once after 3 (the "more than two updates" rule). Measured on rendered frames with depth
-noise (bench/mapping_rate.py, both cameras at 10 Hz): boxes seen 1 s and 10 s are removed 5 ticks
-after their places come into clear view (6 with the whole sensor model, the base swaying while it
-mapped them), against 28 and 36 ticks with POCD's cap 25 and unit forced outlier. Only the hand
-camera's frames count there: the low base camera sees the places against nothing within its range
-(no evidence), which counted as seen-through before and made it 3 ticks. 0 false removals over 60 s
-of still boxes swept in and out of the image (with depth noise, and with the whole sensor model), nor
-for a box whose surface stopped returning depth in plain view for 60 s, nor over 150 ticks of 10–200
-boxes, nor over a lap of the paper's aisle at 0.5 m/s; the voxel baseline still held about 1250
-phantom voxels when they went.
+a box seen once after 3 (the "more than two updates" rule). On rendered frames that makes moved boxes
+go several times sooner than with POCD's cap and unit weight, with no false removals of still, swept,
+dark or many boxes (bench/mapping_rate.py; the figures and conditions are in docs/decisions.md,
+"Removal speed").
 
 The local EDF (`local_edf`, 9a–9b, signed) is built from every live object: a box-like object is its
 solid box (the fitted box completed where it was not seen: behind a face seen from one side, below it
 down to the floor, above it if never seen from above, each cut short by free space seen there;
 `completion.py`), any other (rows of boxes joined at corners) its well-supported surface voxels with
-the columns under them. Against the ground truth at the robot's collision spheres over the aisle lap
-it was never more than 3 cm optimistic and at most 0.2 m (median 0.1 m) conservative.
+the columns under them: close to the ground truth at the robot's collision spheres and seldom
+optimistic (docs/decisions.md, "Solid, completed boxes in the EDF").
 """
 
 from __future__ import annotations

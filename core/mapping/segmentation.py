@@ -1,14 +1,13 @@
-"""Segmentation of the non-floor points into object observations (METHOD.md, perception step 2).
+"""Segmentation of the non-floor points into object observations (docs/method.md, "Perception", step 3).
 
 Points are voxelised at `voxel_m` (each voxel keeps the centroid of its points) and occupied voxels
 are grouped by 26-connectivity with `scipy.ndimage.label` on the dense grid spanning them. Two boxes
 are separate segments when at least one empty voxel lies between them.
 
-Measured on this machine (bench/mapping_rate.py, `segmentation_*` figures, 60 rendered frames of a
-field of boxes): on the same voxels open3d's DBSCAN (eps = 1.8 voxels, the same 26-neighbourhood,
-min_points 1) gives exactly the same clusters on every frame but takes 6.6 ms a frame against 1.0 ms
-for the labelling (median, machine under load); we keep the labelling. The dense grid stays small because points come
-from within the depth range (at most (2 · range / voxel)³ cells).
+On the same voxels open3d's DBSCAN with the same neighbourhood gives exactly the same clusters and is
+several times slower, so we keep the labelling (docs/decisions.md, "Segmentation by connected-component
+labelling"; `segmentation_*` figures of bench/mapping_rate.py). The dense grid stays small because points
+come from within the depth range (at most (2 · range / voxel)³ cells).
 """
 
 from __future__ import annotations

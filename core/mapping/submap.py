@@ -1,4 +1,4 @@
-"""Object submap M_i: the object's surface at `voxel_m` in the object's own frame (METHOD.md, step 4).
+"""Object submap M_i: the object's surface at `voxel_m` in the object's own frame (docs/method.md, eq. 1).
 
 Each occupied voxel keeps the running centroid of the points that fell in it (so the surface is not
 quantised to the voxel grid), a hit count and the number of observations that saw through it since

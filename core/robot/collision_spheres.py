@@ -1,5 +1,6 @@
-"""Collision spheres covering the arm (METHOD.md: upper arm 4 × 0.15, forearm 3 × 0.15, wrists 0.15–0.2,
-tool 0.15). One table; both FK flavours read it. The base and its rack are boxes (`collision_boxes.py`).
+"""Collision spheres covering the arm (docs/method.md, "Settings": upper arm 4 × 0.15, forearm 3 × 0.15,
+wrists 0.15–0.2, tool 0.15). One table; both FK flavours read it. The base and its rack are boxes
+(`collision_boxes.py`).
 
 The paper's table leaves parts of the UR10's collision meshes outside every sphere: its upper-arm
 spheres sit on the link axis while the mesh's shoulder housing reaches 0.135 m to one side (5.5 cm out),

@@ -1,4 +1,4 @@
-"""Position, velocity and acceleration limits of the 9 joints (METHOD.md)."""
+"""Position, velocity and acceleration limits of the 9 joints (docs/method.md, "Settings")."""
 
 from __future__ import annotations
 

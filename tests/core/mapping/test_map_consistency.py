@@ -1,6 +1,6 @@
-"""POCD consistency update (METHOD.md eqs. 1–4): hand-computed cases, the forced outlier, a Delta
+"""POCD consistency update (docs/method.md, eqs. 1–4): hand-computed cases, the forced outlier, a Delta
 beyond ±Delta_max, the exact posterior's moments by numerical integration, and the removal
-latencies METHOD.md measured with the paper's cap."""
+latencies measured with the paper's cap (docs/decisions.md, "Removal speed")."""
 
 import math
 
@@ -17,7 +17,7 @@ PRIOR = Posterior(mu=0.0, sigma=0.5, alpha=2.0, beta=1.0)
 
 
 def _method_md_alpha_beta(theta: float, S: float) -> tuple[float, float]:
-    """METHOD.md step 4, written literally."""
+    """The moment match of eq. (4) written literally, Beta functions and all (docs/method.md)."""
     a = (theta * S - theta**2) / (theta**2 - S)
     return a, a * (1 - theta) / theta
 
@@ -153,7 +153,8 @@ def _forced_outliers_to_removal(seen: int, limit: float, weight: float) -> int:
 
 
 def test_removal_latency_with_the_papers_cap_matches_method_md():
-    # METHOD.md: with k = 0 and the cap 25, seen once → 3 forced outliers, 3 times → 6, 30 times → 35.
+    # docs/decisions.md, "Removal speed": with k = 0 and the cap 25, seen once → 3 forced outliers,
+    # 3 times → 6, 30 times → 35.
     assert [_forced_outliers_to_removal(n, 25.0, 1.0) for n in (1, 3, 30)] == [3, 6, 35]
 
 

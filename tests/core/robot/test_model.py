@@ -23,8 +23,9 @@ def test_limits_follow_method(robot):
 
 
 def test_collision_geometry_table(robot):
-    """METHOD.md's arm spheres (upper arm 4 × 0.15, forearm 3 × 0.15, wrists 0.15–0.2, tool 0.15), the mount and
-    shoulder, and the base as its two boxes (the MuJoCo body and rack: `core/sim/collision_cover.py`)."""
+    """The authors' arm spheres (docs/method.md, "Settings": upper arm 4 × 0.15, forearm 3 × 0.15, wrists
+    0.15–0.2, tool 0.15), the mount and shoulder, and the base as its two boxes (the MuJoCo body and rack:
+    `core/sim/collision_cover.py`)."""
     radii = {s.name: s.radius_m for s in SPHERES}
     assert [s.radius_m for s in SPHERES if s.name.startswith("upper_arm")] == [0.15] * 4
     assert [s.radius_m for s in SPHERES if s.name.startswith("forearm")] == [0.15] * 3
