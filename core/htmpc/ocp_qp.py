@@ -33,8 +33,8 @@ RESCUE_MODE = "balance"
 """HPIPM's mode for a second attempt when a solve in `speed_abs` stalls (status 1, iteration limit, or 2,
 minimum step): such stalls come from a primal guess on the boundary of a narrow feasible set (the previous
 level's optimum against its (7c) rows, a warm start at a velocity limit), and 'balance' solved every one we
-met where a cold start or more iterations did not (docs/decisions.md, "HPIPM warm start"). It is not the
-default: it costs more per iteration."""
+met, where a cold start rescued only some and more iterations none (docs/decisions.md, "HPIPM warm
+start"). It is not the default: it costs more per iteration."""
 
 
 @dataclass(frozen=True)
