@@ -30,12 +30,13 @@ log = logging.getLogger(__name__)
 
 
 def git_commit() -> str:
-    """The checkout's HEAD commit (with '+dirty' when tracked files differ), or 'unknown'."""
+    """The checkout's HEAD commit (with '+dirty' when tracked files other than the reports differ: a report
+    written by an earlier experiment of the same checkout is not a change to the code), or 'unknown'."""
     try:
         head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True,
                               timeout=10).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT,
-                               capture_output=True, text=True, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", ".", ":!reports"],
+                               cwd=ROOT, capture_output=True, text=True, timeout=10).stdout.strip()
     except (OSError, subprocess.TimeoutExpired):
         return "unknown"
     return f"{head}+dirty" if dirty else (head or "unknown")
