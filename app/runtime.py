@@ -229,6 +229,12 @@ class Runtime:
                 self._messages.clear()
         return build_snapshot(self._loop, seq, messages, self.sequence_version)
 
+    @property
+    def snapshots_begun(self) -> int:
+        """`seq` of the newest snapshot begun so far (snapshots are numbered as they begin, from 1)."""
+        with self._publish_lock:
+            return self._seq
+
     def publish(self) -> Snapshot:
         """Send a snapshot, with the messages queued since the last publish, to every subscriber."""
         snap = self.snapshot(consume_messages=True)
