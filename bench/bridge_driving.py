@@ -52,6 +52,10 @@ class DrivingResult:
     command_times: list[float] = field(default_factory=list)
     commands_superseded: int = 0
     cpu_s: float = 0.0
+    loop_niceness: float = float("nan")
+    """Niceness of the live loops' threads (they ask for `RuntimeConfig.live_niceness`, app/priority.py)."""
+    driver_niceness: float = float("nan")
+    map_niceness: float = float("nan")
     load_before: tuple[float, float, float] = (0.0, 0.0, 0.0)
     load_after: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
@@ -72,6 +76,9 @@ class DrivingResult:
             "bridge_laps": float(self.laps),
             "runtime_cpu_pct": 100.0 * self.cpu_s / self.duration_s,
             "load_average_1min": self.load_after[0],
+            "loop_niceness": self.loop_niceness,
+            "driver_niceness": self.driver_niceness,
+            "map_niceness": self.map_niceness,
         }
 
 
@@ -134,6 +141,19 @@ def _collect_control(rt: Runtime, result: DrivingResult) -> None:
         result.control_late += int(np.sum(lateness > rt.live.control_period_s))
 
 
+def _note_niceness(rt: Runtime, driver: subprocess.Popen, result: DrivingResult) -> None:
+    """The priorities the run had (app/priority.py): live loops, the driver, the mapping process."""
+    def nice(tid: int | None) -> float:
+        try:
+            return float(os.getpriority(os.PRIO_PROCESS, tid)) if tid else float("nan")
+        except OSError:
+            return float("nan")
+
+    result.loop_niceness = nice(rt.live.control._thread.native_id) if rt.live else float("nan")
+    result.driver_niceness = nice(driver.pid)
+    result.map_niceness = nice(getattr(rt.map, "pid", None))
+
+
 def _driver_silent(stale_at: np.ndarray, sent: np.ndarray) -> int:
     """How many stale events came after the driver had sent nothing for `DRIVER_SILENT_S`."""
     if not len(stale_at) or not len(sent):
@@ -177,6 +197,7 @@ def drive(duration_s: float, burners: int = 2, burner_niceness: int = 0) -> Driv
             result.command_times.clear()
             stale_at.clear()
             _supervise(rt, result, duration_s)
+            _note_niceness(rt, driver, result)
             result.cpu_s = time.process_time() - cpu0
             _collect_control(rt, result)
             result.commands_superseded = bridge.link.counts["commands_superseded"] - superseded0
