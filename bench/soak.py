@@ -119,12 +119,22 @@ def _goals(rt: Runtime) -> np.ndarray:
     return np.array(pts, dtype=float)
 
 
+def _scene_near_robot(rt: Runtime, radius_m: float = 2.5) -> str:
+    """Where the robot stopped and the boxes around it (to tell a box moved into the way from a controller
+    that got stuck)."""
+    x, y, yaw = rt.state.q[:3]
+    near = [f"{b.id} ({b.position[0]:.2f}, {b.position[1]:.2f})" for b in rt.world.boxes()
+            if np.hypot(b.position[0] - x, b.position[1] - y) < radius_m]
+    return f"robot at ({x:.2f}, {y:.2f}, {math.degrees(yaw):.0f} deg), boxes within {radius_m} m: {', '.join(near)}"
+
+
 def _end_lap(rt: Runtime, tally: Tally) -> None:
     progress = rt.sequencer.progress
     tally.subtasks_done += sum(p.outcome.value == "done" for p in progress)
     failed = [p for p in progress if p.outcome.value == "failed"]
     tally.subtasks_failed += len(failed)
-    tally.failures += [f"t = {rt.time:.0f} s: {p.name}: {p.message}" for p in failed]
+    if failed:
+        tally.failures += [f"t = {rt.time:.0f} s: {p.name}: {p.message}; {_scene_near_robot(rt)}" for p in failed]
     tally.laps += 1
 
 
