@@ -23,7 +23,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +47,10 @@ class DrivingResult:
     stale_driver_silent: int = 0
     faults: list[str] = field(default_factory=list)
     laps: int = 0
+    subtasks_done: int = 0
+    subtask_failures: list[str] = field(default_factory=list)
+    restarts: list[float] = field(default_factory=list)
+    """Monotonic times the supervisor started the run again (after a pause, the end of a lap or a fault)."""
     control_steps: int = 0
     control_late: int = 0
     command_times: list[float] = field(default_factory=list)
@@ -74,12 +78,24 @@ class DrivingResult:
             "commands_superseded": float(self.commands_superseded),
             "bridge_faults": float(len(self.faults)),
             "bridge_laps": float(self.laps),
+            "bridge_subtasks_done": float(self.subtasks_done),
+            "bridge_subtasks_failed": float(len(self.subtask_failures)),
+            "command_gap_max_after_restart_s": self._longest_gap_after_restart(),
             "runtime_cpu_pct": 100.0 * self.cpu_s / self.duration_s,
             "load_average_1min": self.load_after[0],
             "loop_niceness": self.loop_niceness,
             "driver_niceness": self.driver_niceness,
             "map_niceness": self.map_niceness,
         }
+
+
+    def _longest_gap_after_restart(self) -> float:
+        """How long after the latest (re)start the longest command gap began (s; NaN: before any)."""
+        if len(self.command_times) < 2:
+            return float("nan")
+        start = self.command_times[int(np.argmax(np.diff(self.command_times)))]
+        before = [t for t in self.restarts if t <= start]
+        return start - before[-1] if before else float("nan")
 
 
 @contextlib.contextmanager
@@ -95,10 +111,11 @@ def burning(n: int, niceness: int = 0) -> Iterator[list[subprocess.Popen]]:
             proc.wait()
 
 
-def _start_driver(bridge: BridgeServer, sent_file: Path) -> subprocess.Popen:
+def _start_driver(bridge: BridgeServer, sent_file: Path, raise_priority: bool) -> subprocess.Popen:
     env = {**os.environ, "HTMPC_BRIDGE_TOKEN": bridge.token}
+    niceness = [] if raise_priority else ["--niceness", str(os.getpriority(os.PRIO_PROCESS, 0))]
     proc = subprocess.Popen([sys.executable, "-m", "bench.recording_driver", str(sent_file), "--url",
-                             bridge.robot_url, "--log-level", "ERROR"], cwd=ROOT, env=env)
+                             bridge.robot_url, "--log-level", "ERROR", *niceness], cwd=ROOT, env=env)
     if not bridge.robot.wait_for_state(120.0):
         proc.kill()
         raise SystemExit("the sim driver sent no state within 120 s")
@@ -123,15 +140,19 @@ def _supervise(rt: Runtime, result: DrivingResult, duration_s: float) -> None:
         state = rt.run_state
         if state == RunState.PAUSED:
             result.stale_pauses += 1
-            rt.start()
         elif state in (RunState.FINISHED, RunState.FAILED):
             result.laps += 1
-            rt.start()
+            progress = rt.sequencer.progress
+            result.subtasks_done += sum(p.outcome.value == "done" for p in progress)
+            result.subtask_failures += [f"{p.name}: {p.message}" for p in progress if p.outcome.value == "failed"]
         elif state == RunState.FAULT:
             result.faults.append(rt.fault or "")
             _collect_control(rt, result)
             rt.reset()
-            rt.start()
+        else:
+            continue
+        result.restarts.append(time.monotonic())
+        rt.start()
 
 
 def _collect_control(rt: Runtime, result: DrivingResult) -> None:
@@ -163,16 +184,18 @@ def _driver_silent(stale_at: np.ndarray, sent: np.ndarray) -> int:
     return int(np.sum(stale_at - last > DRIVER_SILENT_S))
 
 
-def drive(duration_s: float, burners: int = 2, burner_niceness: int = 0) -> DrivingResult:
+def drive(duration_s: float, burners: int = 2, burner_niceness: int = 0, raise_priority: bool = True) -> DrivingResult:
     """Drive through the bridge for `duration_s` with `burners` CPU burners beside it (at `burner_niceness`
-    below this process: 0 is the same priority, 10 background work)."""
+    below this process: 0 is the same priority, 10 background work); without `raise_priority`, the runtime
+    and the driver stay at this process's priority (`app/priority.py` off: the comparison)."""
     result = DrivingResult(duration_s, load_before=os.getloadavg())
     with tempfile.TemporaryDirectory() as tmp, burning(burners, burner_niceness):
         bridge = BridgeServer(port=0, token=secrets.token_urlsafe(24), token_file=Path(tmp) / "token")
         bridge.start()
         sent_file = Path(tmp) / "sent.npy"
-        driver = _start_driver(bridge, sent_file)
-        rt = Runtime(RuntimeConfig(map_kind="object", constraint="cbf"), backend=bridge.robot)
+        driver = _start_driver(bridge, sent_file, raise_priority)
+        config = RuntimeConfig(map_kind="object", constraint="cbf")
+        rt = Runtime(config if raise_priority else replace(config, live_niceness=None), backend=bridge.robot)
         bridge.attach(rt)
         command = bridge.robot.command
 
@@ -193,6 +216,7 @@ def drive(duration_s: float, burners: int = 2, burner_niceness: int = 0) -> Driv
         try:
             rt.start_live()
             rt.start()
+            result.restarts.append(time.monotonic())
             cpu0, superseded0 = time.process_time(), bridge.link.counts["commands_superseded"]
             result.command_times.clear()
             stale_at.clear()
