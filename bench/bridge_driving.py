@@ -21,6 +21,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
@@ -198,9 +199,12 @@ def drive(duration_s: float, burners: int = 2, burner_niceness: int = 0, raise_p
         rt = Runtime(config if raise_priority else replace(config, live_niceness=None), backend=bridge.robot)
         bridge.attach(rt)
         command = bridge.robot.command
+        driving = threading.Event()
+        """Commands are timed only while the run is driven (not while the runtime shuts down)."""
 
         def timed(qdot: np.ndarray, t: float) -> None:
-            result.command_times.append(time.monotonic())
+            if driving.is_set():
+                result.command_times.append(time.monotonic())
             command(qdot, t)
 
         bridge.robot.command = timed
@@ -220,7 +224,9 @@ def drive(duration_s: float, burners: int = 2, burner_niceness: int = 0, raise_p
             cpu0, superseded0 = time.process_time(), bridge.link.counts["commands_superseded"]
             result.command_times.clear()
             stale_at.clear()
+            driving.set()
             _supervise(rt, result, duration_s)
+            driving.clear()
             _note_niceness(rt, driver, result)
             result.cpu_s = time.process_time() - cpu0
             _collect_control(rt, result)
