@@ -243,9 +243,10 @@ class ClosedLoop:
                 with self.lock:
                     self.controller = controller
 
-    def isolate_map(self, process: MapProcess | None = None) -> None:
+    def isolate_map(self, process: MapProcess | None = None, niceness: int | None = None) -> None:
         """Live: run an object or voxel map in its own process (app/map_process.py), so that its CPU work
-        never holds the GIL the I/O and control loops need; in `process` (still running) if given."""
+        never holds the GIL the I/O and control loops need; in `process` (still running) if given, else in a
+        new one at `niceness` (default: `map_process.NICENESS` below the calling thread's priority)."""
         with self.map_lock:
             if self.config.map_kind not in PROCESS_MAP_KINDS or isinstance(self.map, MapProcess):
                 if process is not None:
@@ -259,7 +260,7 @@ class ClosedLoop:
                 except MapProcessError as err:
                     log.warning("a new mapping process instead: %s", err)
                     process.close(keep=False)
-            self.map = MapProcess(self.map)
+            self.map = MapProcess(self.map, niceness=niceness)
 
     def release_map(self) -> MapProcess | None:
         """Reset: the isolated map's process, to run the next loop's map (None if there is none)."""

@@ -8,6 +8,10 @@
 - publish: a snapshot to the subscribers at `publish_hz`;
 - watchdog: every loop must keep beating; a dead or stalled loop is a fault.
 
+The loops, and the other threads of the process (the bridge's event loop), run at the raised priority of
+`RuntimeConfig.live_niceness` where the system allows it (`app/priority.py`); the mapping process
+`map_process.NICENESS` below them.
+
 Each loop is a `SupervisedLoop`: an exception of any kind in an iteration faults the run (the robot brakes
 within its limits, see `ClosedLoop.fault`) and the loop goes on, so no loop is silently dead. After a
 fault, `Runtime.reset` stops these threads and starts new ones on a new `ClosedLoop`.
@@ -23,7 +27,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from app.closed_loop import ClosedLoop
-from app.map_process import MapProcess
+from app.map_process import NICENESS, MapProcess
+from app.priority import boost_threads, set_thread_niceness, thread_niceness
 from app.problems import ProblemKind
 from app.snapshot import RunState
 from core.sim.sim_robot import SimRobot
@@ -63,8 +68,11 @@ class SupervisedLoop:
     goes to `on_fault` and the loop goes on; anything that ends the thread goes to `on_fault` too."""
 
     def __init__(self, name: str, tick: Callable[[], None], on_fault: Callable[[str], None],
-                 period_s: Callable[[], float] | None = None, on_exit: Callable[[], None] | None = None) -> None:
+                 period_s: Callable[[], float] | None = None, on_exit: Callable[[], None] | None = None,
+                 niceness: int | None = None) -> None:
         self.name, self.tick, self.on_fault = name, tick, on_fault
+        self.niceness = niceness
+        """The thread's niceness (`app/priority.py`; None: the creator's)."""
         self.period_s, self.on_exit = period_s, on_exit
         self.stall_after_s = STALL_AFTER_S.get(name, 5.0)
         self.stats = LoopStats()
@@ -89,6 +97,7 @@ class SupervisedLoop:
         return self._thread.is_alive()
 
     def _run(self) -> None:
+        set_thread_niceness(self.niceness)
         next_tick = time.perf_counter()
         try:
             while not self.stopping.is_set():
@@ -153,11 +162,16 @@ class LiveLoops:
         self.watchdog = SupervisedLoop("watchdog", self._watch, fault, lambda: WATCHDOG_PERIOD_S)
 
     def start(self, map_process: MapProcess | None = None) -> None:
-        """Start the threads; the map in its own process (`map_process` if one is handed over)."""
+        """Start the threads (at raised priority where allowed); the map in its own process (`map_process` if
+        one is handed over)."""
         self.loop.controller.enforce_timeout = True
         self.loop.max_plan_age_s = MAX_PLAN_AGE_S + self.loop.config.actuation_delay_s
+        niceness = self.loop.config.live_niceness
+        boosted = niceness is not None and boost_threads(niceness)
+        for loop in [*self.loops, self.watchdog]:
+            loop.niceness = niceness if boosted else None
         if self.loop.config.map_process:
-            self.loop.isolate_map(map_process)
+            self.loop.isolate_map(map_process, (niceness if boosted else thread_niceness()) + NICENESS)
         elif map_process is not None:
             map_process.close(keep=False)
         for loop in [*self.loops, self.watchdog]:

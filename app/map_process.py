@@ -15,9 +15,10 @@ waited on the map's lock). A worker that dies, raises or does not answer within 
 raise `MapProcessError`, which the closed loop turns into a fault. Calls on the pipe are serialised here;
 `abort()` may come from any thread and ends a call that waits.
 
-The worker runs at a lower priority (`NICENESS`): on a machine short of CPU the map updates less often
-(only the newest frame of each camera is integrated) instead of the loops that must keep time, and the
-robot's driver, running late.
+The worker runs at a lower priority than the loops that must keep time (`NICENESS` above theirs): on a
+machine short of CPU the map updates less often (only the newest frame of each camera is integrated)
+instead of those loops, and the robot's driver, running late. When the loops run at raised priority
+(`app/priority.py`), the worker runs at normal priority, beside ordinary programs.
 """
 
 from __future__ import annotations
@@ -43,9 +44,9 @@ TIMEOUT_S = 10.0
 RECENTRE_M = 0.5
 """`local_edf` answers with the field of the latest integration when that was centred within this of the
 asked centre (an eighth of the 4 m window): control never waits for an integration in progress."""
-NICENESS = 10
-"""The worker runs at this much lower priority: when the machine is short of CPU, the map (which keeps
-only the newest frame of each camera) updates less often, rather than the I/O and control loops and the
+NICENESS = 5
+"""The worker runs at this much lower priority than the live loops: when the machine is short of CPU, the
+map (which keeps only the newest frame of each camera) updates less often, rather than the I/O and control loops and the
 robot's driver running late. Measured in bench/closed_loop.py."""
 
 
@@ -54,9 +55,10 @@ class MapProcessError(RuntimeError):
 
 
 def _serve(conn: Connection, niceness: int) -> None:
-    """The worker: import the maps, say 'ready', then answer requests until 'close' (handing the map back)
-    or the pipe closes."""
-    os.nice(niceness)
+    """The worker (at `niceness`, or the nearest it may have): import the maps, say 'ready', then answer
+    requests until 'close' (handing the map back) or the pipe closes."""
+    with contextlib.suppress(PermissionError):
+        os.setpriority(os.PRIO_PROCESS, 0, max(niceness, -20))
     import core.mapping  # noqa: F401  (the seconds of imports happen before 'ready')
 
     conn.send(("ready", None))
@@ -104,8 +106,9 @@ class MapProcess:
     serialises_calls = True
     """The closed loop need not hold its map lock around calls (it would make control wait for mapping)."""
 
-    def __init__(self, world_map: WorldMap, timeout_s: float = TIMEOUT_S, niceness: int = NICENESS,
+    def __init__(self, world_map: WorldMap, timeout_s: float = TIMEOUT_S, niceness: int | None = None,
                  recentre_m: float = RECENTRE_M) -> None:
+        """`niceness`: the worker's (default: `NICENESS` above the calling thread's)."""
         self.timeout_s, self.recentre_m = timeout_s, recentre_m
         self._pipe = threading.RLock()
         self._local: WorldMap | None = world_map
@@ -115,7 +118,9 @@ class MapProcess:
         self._latest: _Latest | None = None
         ctx = multiprocessing.get_context("spawn")  # never fork a process that runs threads
         self._conn, child = ctx.Pipe()
-        self._process = ctx.Process(target=_serve, args=(child, niceness), name="mapping", daemon=True)
+        if niceness is None:
+            niceness = os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) + NICENESS
+        self._process = ctx.Process(target=_serve, args=(child, min(niceness, 19)), name="mapping", daemon=True)
         self._process.start()
         child.close()
 

@@ -73,6 +73,9 @@ class RuntimeConfig:
     publish_hz: float = 20.0
     map_process: bool = True
     """Live mode: run the object and voxel maps in a process of their own (keeps the I/O loops on time)."""
+    live_niceness: int | None = -10
+    """Live mode: the niceness its threads ask for (lower runs first, as robot control stacks do; needs root
+    or CAP_SYS_NICE, else they stay at normal priority: `app/priority.py`); None leaves priorities alone."""
     seed: int = 0
     htmpc: HTMPCParams = field(default_factory=HTMPCParams)
     mapping: MappingParams = field(default_factory=MappingParams)
@@ -228,6 +231,12 @@ class Runtime:
             if consume_messages:
                 self._messages.clear()
         return build_snapshot(self._loop, seq, messages, self.sequence_version)
+
+    @property
+    def snapshots_begun(self) -> int:
+        """`seq` of the newest snapshot begun so far (snapshots are numbered as they begin, from 1)."""
+        with self._publish_lock:
+            return self._seq
 
     def publish(self) -> Snapshot:
         """Send a snapshot, with the messages queued since the last publish, to every subscriber."""

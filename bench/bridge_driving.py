@@ -21,9 +21,10 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -47,11 +48,19 @@ class DrivingResult:
     stale_driver_silent: int = 0
     faults: list[str] = field(default_factory=list)
     laps: int = 0
+    subtasks_done: int = 0
+    subtask_failures: list[str] = field(default_factory=list)
+    restarts: list[float] = field(default_factory=list)
+    """Monotonic times the supervisor started the run again (after a pause, the end of a lap or a fault)."""
     control_steps: int = 0
     control_late: int = 0
     command_times: list[float] = field(default_factory=list)
     commands_superseded: int = 0
     cpu_s: float = 0.0
+    loop_niceness: float = float("nan")
+    """Niceness of the live loops' threads (they ask for `RuntimeConfig.live_niceness`, app/priority.py)."""
+    driver_niceness: float = float("nan")
+    map_niceness: float = float("nan")
     load_before: tuple[float, float, float] = (0.0, 0.0, 0.0)
     load_after: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
@@ -70,9 +79,24 @@ class DrivingResult:
             "commands_superseded": float(self.commands_superseded),
             "bridge_faults": float(len(self.faults)),
             "bridge_laps": float(self.laps),
+            "bridge_subtasks_done": float(self.subtasks_done),
+            "bridge_subtasks_failed": float(len(self.subtask_failures)),
+            "command_gap_max_after_restart_s": self._longest_gap_after_restart(),
             "runtime_cpu_pct": 100.0 * self.cpu_s / self.duration_s,
             "load_average_1min": self.load_after[0],
+            "loop_niceness": self.loop_niceness,
+            "driver_niceness": self.driver_niceness,
+            "map_niceness": self.map_niceness,
         }
+
+
+    def _longest_gap_after_restart(self) -> float:
+        """How long after the latest (re)start the longest command gap began (s; NaN: before any)."""
+        if len(self.command_times) < 2:
+            return float("nan")
+        start = self.command_times[int(np.argmax(np.diff(self.command_times)))]
+        before = [t for t in self.restarts if t <= start]
+        return start - before[-1] if before else float("nan")
 
 
 @contextlib.contextmanager
@@ -88,10 +112,11 @@ def burning(n: int, niceness: int = 0) -> Iterator[list[subprocess.Popen]]:
             proc.wait()
 
 
-def _start_driver(bridge: BridgeServer, sent_file: Path) -> subprocess.Popen:
+def _start_driver(bridge: BridgeServer, sent_file: Path, raise_priority: bool) -> subprocess.Popen:
     env = {**os.environ, "HTMPC_BRIDGE_TOKEN": bridge.token}
+    niceness = [] if raise_priority else ["--niceness", str(os.getpriority(os.PRIO_PROCESS, 0))]
     proc = subprocess.Popen([sys.executable, "-m", "bench.recording_driver", str(sent_file), "--url",
-                             bridge.robot_url, "--log-level", "ERROR"], cwd=ROOT, env=env)
+                             bridge.robot_url, "--log-level", "ERROR", *niceness], cwd=ROOT, env=env)
     if not bridge.robot.wait_for_state(120.0):
         proc.kill()
         raise SystemExit("the sim driver sent no state within 120 s")
@@ -116,15 +141,19 @@ def _supervise(rt: Runtime, result: DrivingResult, duration_s: float) -> None:
         state = rt.run_state
         if state == RunState.PAUSED:
             result.stale_pauses += 1
-            rt.start()
         elif state in (RunState.FINISHED, RunState.FAILED):
             result.laps += 1
-            rt.start()
+            progress = rt.sequencer.progress
+            result.subtasks_done += sum(p.outcome.value == "done" for p in progress)
+            result.subtask_failures += [f"{p.name}: {p.message}" for p in progress if p.outcome.value == "failed"]
         elif state == RunState.FAULT:
             result.faults.append(rt.fault or "")
             _collect_control(rt, result)
             rt.reset()
-            rt.start()
+        else:
+            continue
+        result.restarts.append(time.monotonic())
+        rt.start()
 
 
 def _collect_control(rt: Runtime, result: DrivingResult) -> None:
@@ -132,6 +161,19 @@ def _collect_control(rt: Runtime, result: DrivingResult) -> None:
         lateness = np.array(rt.live.control_lateness_s)
         result.control_steps += len(lateness)
         result.control_late += int(np.sum(lateness > rt.live.control_period_s))
+
+
+def _note_niceness(rt: Runtime, driver: subprocess.Popen, result: DrivingResult) -> None:
+    """The priorities the run had (app/priority.py): live loops, the driver, the mapping process."""
+    def nice(tid: int | None) -> float:
+        try:
+            return float(os.getpriority(os.PRIO_PROCESS, tid)) if tid else float("nan")
+        except OSError:
+            return float("nan")
+
+    result.loop_niceness = nice(rt.live.control._thread.native_id) if rt.live else float("nan")
+    result.driver_niceness = nice(driver.pid)
+    result.map_niceness = nice(getattr(rt.map, "pid", None))
 
 
 def _driver_silent(stale_at: np.ndarray, sent: np.ndarray) -> int:
@@ -143,21 +185,26 @@ def _driver_silent(stale_at: np.ndarray, sent: np.ndarray) -> int:
     return int(np.sum(stale_at - last > DRIVER_SILENT_S))
 
 
-def drive(duration_s: float, burners: int = 2, burner_niceness: int = 0) -> DrivingResult:
+def drive(duration_s: float, burners: int = 2, burner_niceness: int = 0, raise_priority: bool = True) -> DrivingResult:
     """Drive through the bridge for `duration_s` with `burners` CPU burners beside it (at `burner_niceness`
-    below this process: 0 is the same priority, 10 background work)."""
+    below this process: 0 is the same priority, 10 background work); without `raise_priority`, the runtime
+    and the driver stay at this process's priority (`app/priority.py` off: the comparison)."""
     result = DrivingResult(duration_s, load_before=os.getloadavg())
     with tempfile.TemporaryDirectory() as tmp, burning(burners, burner_niceness):
         bridge = BridgeServer(port=0, token=secrets.token_urlsafe(24), token_file=Path(tmp) / "token")
         bridge.start()
         sent_file = Path(tmp) / "sent.npy"
-        driver = _start_driver(bridge, sent_file)
-        rt = Runtime(RuntimeConfig(map_kind="object", constraint="cbf"), backend=bridge.robot)
+        driver = _start_driver(bridge, sent_file, raise_priority)
+        config = RuntimeConfig(map_kind="object", constraint="cbf")
+        rt = Runtime(config if raise_priority else replace(config, live_niceness=None), backend=bridge.robot)
         bridge.attach(rt)
         command = bridge.robot.command
+        driving = threading.Event()
+        """Commands are timed only while the run is driven (not while the runtime shuts down)."""
 
         def timed(qdot: np.ndarray, t: float) -> None:
-            result.command_times.append(time.monotonic())
+            if driving.is_set():
+                result.command_times.append(time.monotonic())
             command(qdot, t)
 
         bridge.robot.command = timed
@@ -173,10 +220,14 @@ def drive(duration_s: float, burners: int = 2, burner_niceness: int = 0) -> Driv
         try:
             rt.start_live()
             rt.start()
+            result.restarts.append(time.monotonic())
             cpu0, superseded0 = time.process_time(), bridge.link.counts["commands_superseded"]
             result.command_times.clear()
             stale_at.clear()
+            driving.set()
             _supervise(rt, result, duration_s)
+            driving.clear()
+            _note_niceness(rt, driver, result)
             result.cpu_s = time.process_time() - cpu0
             _collect_control(rt, result)
             result.commands_superseded = bridge.link.counts["commands_superseded"] - superseded0

@@ -14,6 +14,7 @@ from __future__ import annotations
 import logging
 import math
 import multiprocessing
+import os
 import secrets
 import tempfile
 import threading
@@ -41,8 +42,9 @@ MOVABLE = ("box_b", "box_c", "box_d", "box_e")
 """The default scene's boxes the sequence does not work at (box_a is picked from, the table placed on)."""
 AREA = ((-1.0, 6.5), (-3.0, 3.0))
 ROBOT_CLEAR_M = 1.6
-"""A moved box's centre stays this far from the robot's base (base sphere 0.55 m + half a box diagonal
-0.42 m + room to brake)."""
+"""A moved box's centre stays this far from the robot's base centre: the base's collision boxes reach 0.62 m
+(half the diagonal of the 0.96 × 0.79 m body, `core/robot/collision_boxes.py`), a default box's half diagonal
+0.42 m, and room to brake. The arm may still reach over a moved box: the controller keeps it clear."""
 GOAL_CLEAR_M = 1.2
 BOX_CLEAR_M = 0.9
 
@@ -56,7 +58,8 @@ def rss_mb() -> float:
 
 
 def growth_mb_per_min(samples: list[tuple[float, float]], warmup: float = 0.2) -> float:
-    """Slope of RSS over wall time (MB/min) after the first `warmup` fraction of the samples."""
+    """Slope of RSS over wall time (MB/min) after the first `warmup` fraction of the samples (the warm-up:
+    allocator arenas, caches and the first solver and map buffers fill once)."""
     rows = np.array(samples[int(len(samples) * warmup):])
     if len(rows) < 3 or rows[-1, 0] - rows[0, 0] < 1.0:
         return math.nan
@@ -116,12 +119,22 @@ def _goals(rt: Runtime) -> np.ndarray:
     return np.array(pts, dtype=float)
 
 
+def _scene_near_robot(rt: Runtime, radius_m: float = 2.5) -> str:
+    """Where the robot stopped and the boxes around it (to tell a box moved into the way from a controller
+    that got stuck)."""
+    x, y, yaw = rt.state.q[:3]
+    near = [f"{b.id} ({b.position[0]:.2f}, {b.position[1]:.2f})" for b in rt.world.boxes()
+            if np.hypot(b.position[0] - x, b.position[1] - y) < radius_m]
+    return f"robot at ({x:.2f}, {y:.2f}, {math.degrees(yaw):.0f} deg), boxes within {radius_m} m: {', '.join(near)}"
+
+
 def _end_lap(rt: Runtime, tally: Tally) -> None:
     progress = rt.sequencer.progress
     tally.subtasks_done += sum(p.outcome.value == "done" for p in progress)
     failed = [p for p in progress if p.outcome.value == "failed"]
     tally.subtasks_failed += len(failed)
-    tally.failures += [f"t = {rt.time:.0f} s: {p.name}: {p.message}" for p in failed]
+    if failed:
+        tally.failures += [f"t = {rt.time:.0f} s: {p.name}: {p.message}; {_scene_near_robot(rt)}" for p in failed]
     tally.laps += 1
 
 
@@ -164,9 +177,25 @@ class ApiTally:
     failures: list[str] = field(default_factory=list)
     faults: list[str] = field(default_factory=list)
     rss: list[tuple[float, float]] = field(default_factory=list)
-    threads_before: int = 0
-    threads_after: int = 0
+    """(monotonic s, RSS MB) after each cycle, the first row before any."""
+    threads: list[int] = field(default_factory=list)
+    """Threads of this process after each cycle, the first entry before any."""
     processes_after: int = 0
+
+    def figures(self) -> dict[str, float]:
+        """Growth over the second half of the cycles (steady state: the first cycles warm caches and malloc
+        arenas up), the first half's growth reported apart as the warm-up."""
+        half = len(self.rss) // 2
+        rss = np.array(self.rss) if self.rss else np.zeros((0, 2))
+        return {"api_cycles": float(self.cycles), "api_failures": float(len(self.failures)),
+                "api_rss_growth_mb_per_min": growth_mb_per_min(self.rss, warmup=0.5),
+                "api_rss_growth_mb_per_cycle": (float(np.polyfit(np.arange(len(rss) - half), rss[half:, 1], 1)[0])
+                                                if len(rss) - half >= 3 else math.nan),
+                "api_rss_warmup_mb": float(rss[half, 1] - rss[0, 1]) if half else math.nan,
+                "api_rss_end_mb": float(rss[-1, 1]) if len(rss) else math.nan,
+                "api_threads_leaked": float(self.threads[-1] - self.threads[half]) if half else math.nan,
+                "api_threads_warmup": float(self.threads[half] - self.threads[0]) if half else math.nan,
+                "api_child_processes": float(self.processes_after)}
 
 
 def _expect(response: httpx.Response, run_state: str, tally: ApiTally, what: str) -> None:
@@ -185,7 +214,8 @@ def api_cycles(n: int, pause_s: float = 0.3) -> ApiTally:
         runtime = Runtime(RuntimeConfig())
         bridge.attach(runtime)
         runtime.start_live()
-        tally.threads_before = threading.active_count()
+        tally.threads.append(threading.active_count())
+        tally.rss.append((time.monotonic(), rss_mb()))
         headers = {"Authorization": f"Bearer {bridge.token}"}
         try:
             with httpx.Client(base_url=bridge.url, headers=headers, timeout=60.0) as api, Progress() as progress:
@@ -202,8 +232,8 @@ def api_cycles(n: int, pause_s: float = 0.3) -> ApiTally:
                     _expect(api.post("/api/run/reset"), "idle", tally, f"cycle {i} reset")
                     tally.cycles += 1
                     tally.rss.append((time.monotonic(), rss_mb()))
+                    tally.threads.append(threading.active_count())
                     progress.update(task, completed=i + 1)
-            tally.threads_after = threading.active_count()
             tally.processes_after = len(multiprocessing.active_children())
         finally:
             runtime.shutdown()
@@ -214,7 +244,7 @@ def api_cycles(n: int, pause_s: float = 0.3) -> ApiTally:
 def main(argv: list[str] | None = None) -> None:
     args = bench_args(__doc__.splitlines()[0], argv)
     sim_minutes, n_cycles = (3.0, 20) if args.quick else (30.0, 100)
-    wall0, cpu0 = time.monotonic(), time.process_time()
+    wall0, cpu0, load0 = time.monotonic(), time.process_time(), os.getloadavg()
     soak = lockstep_soak(sim_minutes)
     wall_lockstep = time.monotonic() - wall0
     cycles = api_cycles(n_cycles)
@@ -230,17 +260,17 @@ def main(argv: list[str] | None = None) -> None:
         "sim_minutes": sim_minutes,
         "lockstep_rtf": sim_minutes * 60.0 / wall_lockstep,
         "rss_end_mb": soak.rss[-1][1],
-        "api_cycles": float(cycles.cycles),
-        "api_failures": float(len(cycles.failures)),
-        "api_rss_growth_mb_per_min": growth_mb_per_min(cycles.rss),
-        "api_threads_leaked": float(cycles.threads_after - cycles.threads_before),
-        "api_child_processes": float(cycles.processes_after),
+        **cycles.figures(),
         "cpu_s": time.process_time() - cpu0,
+        "wall_s": time.monotonic() - wall0,
+        "load_average_1min_start": load0[0],
     }
     units = {"rss_growth_mb_per_min": "MB/min", "api_rss_growth_mb_per_min": "MB/min", "sim_minutes": "min",
-             "lockstep_rtf": "x", "rss_end_mb": "MB", "cpu_s": "s"}
+             "api_rss_growth_mb_per_cycle": "MB", "api_rss_warmup_mb": "MB", "api_rss_end_mb": "MB",
+             "lockstep_rtf": "x", "rss_end_mb": "MB", "cpu_s": "s", "wall_s": "s"}
     targets = {"collisions": "== 0", "crashes": "== 0", "faults": "== 0", "rss_growth_mb_per_min": "<= 1",
-               "subtasks_failed": "== 0", "api_failures": "== 0", "api_rss_growth_mb_per_min": "<= 1"}
+               "subtasks_failed": "== 0", "api_failures": "== 0", "api_rss_growth_mb_per_min": "<= 1",
+               "api_threads_leaked": "== 0"}
     write_result("soak", figures, units, targets, quick=args.quick,
                  extra={"faults": soak.faults + cycles.faults, "subtask_failures": soak.failures[:50],
                         "api_failures": cycles.failures[:20]})

@@ -4,6 +4,11 @@ The bridge reads the runtime the way the UI does, through published `Snapshot`s.
 runtime publishes at 20 Hz; when no snapshot newer than `max_age_s` is at hand (lockstep, or right
 after a run-control request) the attachment asks the runtime to publish one, which every subscriber
 receives (so no operator message is taken from the UI).
+
+Snapshots can arrive out of order: the publish thread may have assembled one before a run-control request
+and hand it over after it (and the attachment's own publish may overtake the thread's). So the cache only
+takes a snapshot newer (by `seq`) than the one it holds and than every snapshot begun before the latest
+`invalidate`: a Start that answered "running" is never followed by a view from before it.
 """
 
 from __future__ import annotations
@@ -27,11 +32,16 @@ class RuntimeAttachment:
         self._lock = threading.Lock()
         self._latest: Snapshot | None = None
         self._received_at = 0.0
+        self._min_seq = 0
+        """Snapshots with `seq` up to this were begun before the latest `invalidate` (or are older than the
+        cached one): never cached."""
         self._unsubscribe = runtime.subscribe(self._receive)
 
     def _receive(self, snap: Snapshot) -> None:
         with self._lock:
-            self._latest, self._received_at = snap, time.monotonic()
+            if snap.seq <= self._min_seq:
+                return
+            self._latest, self._received_at, self._min_seq = snap, time.monotonic(), snap.seq
 
     def snapshot(self) -> Snapshot:
         """The latest snapshot, published anew if the cached one is older than `max_age_s`."""
@@ -43,8 +53,9 @@ class RuntimeAttachment:
 
     def invalidate(self) -> None:
         """The runtime changed (a run-control request): the next read publishes a new snapshot."""
+        begun = self.runtime.snapshots_begun
         with self._lock:
-            self._latest = None
+            self._latest, self._min_seq = None, max(self._min_seq, begun)
 
     @property
     def simulates(self) -> bool:

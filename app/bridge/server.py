@@ -115,10 +115,14 @@ class BridgeServer:
 
     def _on_stale(self, age_s: float) -> None:
         attachment = self.attachment
-        if attachment is None or attachment.runtime.backend is not self.robot or not attachment.running:
+        if attachment is None or attachment.runtime.backend is not self.robot:
             return
-        attachment.runtime.pause()
-        what = "the driver disconnected" if age_s == float("inf") else f"robot state is {age_s * 1e3:.0f} ms old"
+        gone = age_s == float("inf")
+        if attachment.running:
+            attachment.runtime.pause()
+        elif not (gone and attachment.runtime.run_state == RunState.PAUSED):
+            return  # (a disconnection after a stale-state pause is still told)
+        what = "the driver disconnected" if gone else f"robot state is {age_s * 1e3:.0f} ms old"
         attachment.runtime.problems.record(ProblemKind.STALE_STATE, attachment.runtime.time, what)
         attachment.runtime.notify(f"{what}: zero velocity commanded, run paused (Start resumes)")
 

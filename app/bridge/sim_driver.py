@@ -30,6 +30,7 @@ import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported
 from app.bridge.auth import TOKEN_ENV, read_token
 from app.bridge.driver_client import DriverClient
 from app.bridge.protocol import Command
+from app.priority import set_thread_niceness
 from core.params import SimParams
 from core.robot.model import RobotModel
 from core.sim.scene import load_scene
@@ -181,6 +182,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--connect-timeout", type=float, default=30.0)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--log-level", default="INFO")
+    parser.add_argument("--niceness", type=int, default=-10,
+                        help="scheduling niceness asked for: a robot's driver keeps time, so it runs before ordinary "
+                             "programs where allowed (root or CAP_SYS_NICE; else normal priority)")
     return parser
 
 
@@ -195,6 +199,7 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, ValueError) as err:
         parser.error(str(err))
     logging.basicConfig(level=args.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    set_thread_niceness(args.niceness)  # before any thread starts: they inherit it
     world = SimWorld(RobotModel(), SimParams(), load_scene(args.scene))
     robot = SimRobot(world, seed=args.seed, cameras=tuple(c for c in args.cameras.split(",") if c))
     client = DriverClient(args.url, token, name="sim_driver", clock=lambda: world.time)

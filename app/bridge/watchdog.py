@@ -26,6 +26,8 @@ class StaleStateWatchdog:
         self.on_stale = on_stale
         self.period_s = period_s
         self.stale = True
+        self._gone_told = True
+        """Whether `on_stale` heard of the driver's disconnection since state was last fresh."""
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -52,13 +54,19 @@ class StaleStateWatchdog:
         """One check: act on a fresh → stale or stale → fresh transition."""
         age = self.link.state_age_s()
         stale = age > self.link.stale_after_s
+        gone = age == float("inf")
         if stale and not self.stale:
-            self.stale = True
+            self.stale, self._gone_told = True, gone
             self.link.send_zero("stale_state")
-            self.link.record("stale", f"state {age * 1e3:.0f} ms old" if age < float("inf") else "driver gone")
+            self.link.record("stale", f"state {age * 1e3:.0f} ms old" if not gone else "driver gone")
             self.link.count("stale_events")
             if self.on_stale is not None:
                 self.on_stale(age)
+        elif stale and gone and not self._gone_told:  # stale first (a loaded machine), then the link closed
+            self._gone_told = True
+            self.link.record("stale", "driver gone")
+            if self.on_stale is not None:
+                self.on_stale(age)
         elif not stale and self.stale:
-            self.stale = False
+            self.stale, self._gone_told = False, False
             self.link.record("fresh", "state is fresh again")

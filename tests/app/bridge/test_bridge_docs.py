@@ -40,3 +40,17 @@ def test_ready_pose_and_speed_limits_match_the_code() -> None:
     v_max = RobotParams().v_max
     assert f"base x and y {v_max[0]:.1f} m/s, yaw {v_max[2]:.2f} rad/s" in FLAT
     assert "arm joints " + ", ".join(f"{v:g}" for v in v_max[3:]) + " rad/s" in FLAT
+
+
+def test_the_command_rate_paragraph_states_the_codes_period_and_priorities() -> None:
+    from app.bridge.sim_driver import build_parser
+    from app.map_process import NICENESS
+    from app.runtime import RuntimeConfig
+    from core.params import HTMPCParams
+
+    paragraph = FLAT.split("**The command rate a driver sees.**", 1)[1].split("received.", 1)[0]
+    rate = HTMPCParams().command_rate_hz
+    assert f"every command period ({1e3 / rate:.0f} ms, {rate:.0f} Hz)" in paragraph
+    niceness = RuntimeConfig().live_niceness
+    assert f"niceness {niceness}" in paragraph and f"runs {NICENESS} above them" in paragraph
+    assert f"reference driver at {build_parser().get_default('niceness')} too" in paragraph

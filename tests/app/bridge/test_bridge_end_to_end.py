@@ -90,8 +90,9 @@ def test_studio_on_the_bridge_completes_a_two_subtask_sequence(studio_and_driver
             health = api.get("/api/health").json()
             return health["driver_connected"] and not health["stale"]
 
-        assert wait_until(fresh, timeout_s=120, period_s=0.2), driver.output
-        assert api.post("/api/run/start").json()["run_state"] == "running"
+        assert wait_until(fresh, timeout_s=120, period_s=0.2), driver.output + "\n--- studio log ---\n" + studio.output
+        started = api.post("/api/run/start").json()
+        assert started["run_state"] == "running", (started, studio.output)
         deadline = time.monotonic() + 300
         progress = api.get("/api/progress").json()
         while progress["run_state"] == "running" and time.monotonic() < deadline:
@@ -99,7 +100,7 @@ def test_studio_on_the_bridge_completes_a_two_subtask_sequence(studio_and_driver
             progress = api.get("/api/progress").json()
         health = api.get("/api/health").json()
     outcomes = [s["outcome"] for s in progress["subtasks"]]
-    assert progress["run_state"] == "finished" and outcomes == ["done", "done"], (progress, health,
-                                                                                   studio.output[-3000:])
+    assert progress["run_state"] == "finished" and outcomes == ["done", "done"], (
+        f"{progress}\n{health}\n--- studio log (all of it) ---\n{studio.output}")
     assert health["counters"]["rejected"] == {} and health["counters"]["frames"] > 0
     assert token not in studio.output and token[:4] in studio.output, "the token is printed masked, never whole"

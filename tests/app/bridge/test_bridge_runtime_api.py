@@ -132,3 +132,15 @@ def test_zero_commands_say_why_the_robot_may_not_move(bridge: BridgeServer, brid
     assert sent == ["not_running", "runtime", "runtime", "not_running", "emergency_stop"]
     assert [c["reason"] for c in on_the_wire] == sent
     assert [c["qdot"] != [0.0] * 9 for c in on_the_wire] == [False, False, True, False, False]
+
+
+def test_progress_after_start_never_shows_a_snapshot_begun_before_it(api: httpx.Client, sim_runtime) -> None:
+    """The publish thread may assemble a snapshot before Start and hand it over after: the operator API must
+    not answer /api/progress with that idle view once Start has answered running."""
+    before = sim_runtime.snapshot()  # begun (and assembled) while idle, delivered late below
+    assert before.run_state.value == "idle"
+    assert api.post("/api/run/start").json()["run_state"] == "running"
+    for callback in list(sim_runtime._subscribers):
+        callback(before)
+    assert api.get("/api/progress").json()["run_state"] == "running"
+    assert api.post("/api/run/stop").json()["run_state"] == "idle"

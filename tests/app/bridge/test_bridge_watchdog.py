@@ -74,3 +74,31 @@ def test_frozen_driver_gets_zero_then_moves_on_when_it_thaws(bridge: BridgeServe
     assert wait_until(lambda: not bridge.watchdog.stale, timeout_s=10)
     assert wait_until(lambda: bridge.robot.observe().state.v[0] > 0.25, timeout_s=10)
     assert [e.kind for e in bridge.link.events if e.at >= frozen_at][:3] == ["zero_command", "stale", "fresh"]
+
+
+def test_a_disconnection_after_a_stale_pause_is_still_reported() -> None:
+    """On a loaded machine state can go stale before the closed link is noticed: the watchdog tells of
+    both, so the operator learns that the driver is gone, not only that its state was late."""
+    from app.bridge.watchdog import StaleStateWatchdog
+
+    class Link:
+        stale_after_s = 0.15
+        age = 0.0
+
+        def state_age_s(self) -> float:
+            return self.age
+
+        def send_zero(self, reason: str) -> None: ...
+        def record(self, kind: str, detail: str = "") -> None: ...
+        def count(self, name: str) -> None: ...
+
+    link, heard = Link(), []
+    watchdog = StaleStateWatchdog(link, on_stale=heard.append)
+    watchdog.check()  # fresh
+    link.age = 0.151
+    watchdog.check()
+    watchdog.check()
+    link.age = float("inf")
+    watchdog.check()
+    watchdog.check()
+    assert heard == [0.151, float("inf")]
