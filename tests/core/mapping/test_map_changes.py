@@ -118,11 +118,7 @@ def test_a_box_moved_out_of_view_keeps_its_belief_until_its_place_is_seen(robot,
         mapper.integrate(view.observe())
     assert obj.id in mapper.objects and (obj.posterior, obj.updates) == before
     view.world.set_robot(READY_Q)  # look back at its place
-    frames = 0
-    while obj.id not in mapper.removed_ids and frames < 10:
-        mapper.integrate(view.observe())
-        frames += 1
-    assert obj.id in mapper.removed_ids, f"still mapped after {frames} clear frames"
+    _assert_removed_within(mapper, view, obj.id, frames=10)
     view.close()
 
 
@@ -144,12 +140,17 @@ def test_a_box_whose_surface_stops_returning_depth_is_not_removed(robot, params)
     assert obj.posterior.consistency > 0.9
     view.world.move_box("a", OUT_OF_SIGHT)  # gone for real: its place is seen through to the floor behind it
     view.world.set_robot(READY_Q)
-    frames = 0
-    while obj.id not in mapper.removed_ids and frames < 10:
-        mapper.integrate(view.observe())
-        frames += 1
-    assert obj.id in mapper.removed_ids, f"still mapped after {frames} clear frames"
+    _assert_removed_within(mapper, view, obj.id, frames=10)
     view.close()
+
+
+def _assert_removed_within(mapper: ObjectMapper, view: View, obj_id: int, frames: int) -> None:
+    """The object is removed within `frames` frames of its place being in clear view."""
+    seen = 0
+    while obj_id not in mapper.removed_ids and seen < frames:
+        mapper.integrate(view.observe())
+        seen += 1
+    assert obj_id in mapper.removed_ids, f"still mapped after {seen} clear frames"
 
 
 def test_an_occluded_box_is_not_penalised(robot, params):
