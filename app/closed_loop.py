@@ -50,9 +50,11 @@ from app.problems import ProblemKind, ProblemLog
 from app.run_log import RunLog
 from app.snapshot import RunState
 from core.htmpc.safety import brake_along, braking_plan
+from core.mapping.frame_exposure import at_exposure
 from core.mapping.world_map import WorldMap
 from core.params import SensorParams
 from core.robot.model import RobotModel
+from core.robot.state_history import StateHistory
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
 from core.types import NQ, DepthFrame, LocalEDF, Observation, Plan, PlanStatus, RobotBackend, RobotState
@@ -127,6 +129,8 @@ class ClosedLoop:
         self._pending_plans: deque[tuple[float, Plan]] = deque()
         self._frames: deque[DepthFrame] = deque()
         self.state: RobotState = self._initial_state()
+        self.history = StateHistory(horizon_s=2.0 + config.perception_delay_s)
+        """Recent states, to place each frame at its exposure (`integrate_frames`)."""
         self.last_qdot = np.zeros(NQ)
         self.commanded = False
         """Whether a command went out yet (snapshots show none before the first)."""
@@ -373,7 +377,16 @@ class ClosedLoop:
                 self.frames_ready.notify()
         with self.lock:
             self.state = state
+            self.history.append(state)
         return state
+
+    def camera_latency_s(self) -> float:
+        """The calibrated exposure-to-stamp latency (`MappingParams.camera_latency_s`); unset, the simulated
+        camera's own offset."""
+        latency = self.config.mapping.camera_latency_s
+        if latency is not None:
+            return latency
+        return self.backend.sensor.camera_time_offset_s if isinstance(self.backend, SimRobot) else 0.0
 
     def advance_clock(self, dt_s: float) -> RobotState:
         """No observation this period (the backend raised): keep the last state, its time moved on by dt_s,
@@ -411,12 +424,24 @@ class ClosedLoop:
         with self.lock:
             for frame in due:
                 self.latest_frames[frame.camera] = frame
-            state = self.state
+            frames, state = self._at_exposure(due)
         t0 = time.perf_counter()
         with self.using_map() as world_map:
-            world_map.integrate(Observation(state=state, frames=tuple(due), odometry=None))
+            world_map.integrate(Observation(state=state, frames=frames, odometry=None))
         with self.lock:
             self.timings_ms["mapping"] = (time.perf_counter() - t0) * 1e3
+
+    def _at_exposure(self, frames: list[DepthFrame]) -> tuple[tuple[DepthFrame, ...], RobotState]:
+        """The frames moved back to their exposure (camera latency compensated) and the robot's state at
+        the newest exposure: the map places the robot's body there, not where it is now (call under `lock`)."""
+        latency = self.camera_latency_s()
+        moved = []
+        for frame in frames:
+            stamp, exposure = self.history.at(frame.t), self.history.at(frame.t - latency)
+            moved.append(frame if stamp is None or exposure is None
+                         else at_exposure(frame, latency, stamp, exposure, self.robot))
+        newest = self.history.at(max(f.t for f in moved))
+        return tuple(moved), newest if newest is not None else self.state
 
     def control(self, state: RobotState) -> None:
         """Sequencer → references → HTMPC; the plan becomes active after the modelled actuation delay."""

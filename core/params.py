@@ -89,8 +89,8 @@ class SensorParams:
     odometry_drift_rad: float = 0.01
     """Random walk of the heading estimate: std after 1 rad turned grows as √angle (rad/√rad)."""
     camera_time_offset_s: float = 0.02
-    """A frame is stamped this long after it was taken (driver latency not compensated): its pose is the
-    robot's estimate at the stamp, and it arrives then."""
+    """A frame is stamped this long after it was taken: its pose is the robot's estimate at the stamp, and
+    it arrives then (the map compensates it: `MappingParams.camera_latency_s`)."""
 
     @classmethod
     def ideal(cls) -> SensorParams:
@@ -209,6 +209,10 @@ class MappingParams:
     is solid this deep behind the faces seen, until free space is seen there (the paper's boxes: 0.6 m)."""
     self_filter_margin_m: float = 0.0
     """Points within the robot's collision spheres grown by this margin are the robot itself."""
+    camera_latency_s: float | None = None
+    """Calibrated time from a frame's exposure to its stamp: the map places each frame at the camera pose
+    of its exposure (`core/mapping/frame_exposure.py`). None: the simulated camera's own offset
+    (`SensorParams.camera_time_offset_s`, an exact calibration), 0 with a real robot (set it there)."""
 
     # --- segmentation, association, registration ---------------------------------------------------
     min_segment_voxels: int = 8

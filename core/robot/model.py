@@ -116,6 +116,10 @@ class RobotModel:
     def _sphere_frame_ids(self) -> list[int]:
         return [self.model.getFrameId(f"sphere_{s.name}") for s in self.spheres]
 
+    def has_frame(self, name: str) -> bool:
+        """Whether the model has a frame of that name."""
+        return bool(self.model.existFrame(name))
+
     def frame_id(self, name: str) -> int:
         """Index of a frame; KeyError with the known names if absent."""
         if not self.model.existFrame(name):
