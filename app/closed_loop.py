@@ -422,9 +422,9 @@ class ClosedLoop:
         if not due or self.fault_reason is not None:
             return
         with self.lock:
-            for frame in due:
-                self.latest_frames[frame.camera] = frame
             frames, state = self._at_exposure(due)
+            for frame in frames:  # the studio's clouds too, where the camera was
+                self.latest_frames[frame.camera] = frame
         t0 = time.perf_counter()
         with self.using_map() as world_map:
             world_map.integrate(Observation(state=state, frames=frames, odometry=None))
