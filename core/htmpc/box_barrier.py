@@ -38,6 +38,9 @@ class BoxPoints:
     P: np.ndarray
     JP: np.ndarray
     dvel_dq: np.ndarray
+    distance: np.ndarray | None = None
+    """EDF at P (K,R) and its gradient (K,R,3), from the lookup that chose the points (no second lookup)."""
+    gradient: np.ndarray | None = None
 
 
 class BoxBarrier:
@@ -65,6 +68,10 @@ class BoxBarrier:
 
     def local_points(self, q: np.ndarray, edf: DistanceField) -> np.ndarray:
         """Base-frame closest points (K, rows, 3) of each row's box to the obstacles, at base poses q[:, :3]."""
+        return self._closest(q, edf)[0]
+
+    def _closest(self, q: np.ndarray, edf: DistanceField) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`local_points` with the EDF's value (K, rows) and gradient (K, rows, 3) there."""
         turn = _yaw_matrices(q[:, 2])  # row vectors: world offset = local @ turn
         origin = np.column_stack([q[:, 0], q[:, 1], np.zeros(len(q))])[:, None]
         local = np.broadcast_to(self.seeds, (len(q), *self.seeds.shape))
@@ -75,13 +82,15 @@ class BoxBarrier:
             ok = (norm > FLAT_GRADIENT) & np.isfinite(d)  # a broken map moves no point (its rows fail the QP)
             step = np.where(ok, d / np.where(ok, norm, 1.0), 0.0)[..., None] * np.where(ok[..., None], g, 0.0)
             local = np.clip((p - step - origin) @ np.swapaxes(turn, 1, 2), self.lo, self.hi)
-        d = edf.distance(origin + local @ turn)
+        d, g = distance_and_gradient(edf, origin + local @ turn)
         best = np.take_along_axis(self.groups[None], np.argmin(d[:, self.groups], axis=2)[..., None], axis=2)[..., 0]
-        return np.take_along_axis(local, best[..., None], axis=1)
+        return (np.take_along_axis(local, best[..., None], axis=1), np.take_along_axis(d, best, axis=1),
+                np.take_along_axis(g, best[..., None], axis=1))
 
     def points(self, q: np.ndarray, v: np.ndarray, edf: DistanceField) -> BoxPoints:
-        """The rows' points at nodes q (K, 9) with velocities v (K, 9): world positions and Jacobians."""
-        local = self.local_points(q, edf)
+        """The rows' points at nodes q (K, 9) with velocities v (K, 9): world positions, Jacobians, and the EDF
+        there."""
+        local, distance, gradient = self._closest(q, edf)
         turned = local @ _yaw_matrices(q[:, 2])  # R(yaw) p_local
         K, R = local.shape[:2]
         P = turned + np.column_stack([q[:, 0], q[:, 1], np.zeros(K)])[:, None]
@@ -93,7 +102,7 @@ class BoxBarrier:
         dvel = np.zeros((K, R, 3, 9))
         dvel[:, :, 0, 2] = -v[:, 2:3] * turned[..., 0]  # ∂/∂yaw of yaw_rate · ∂(R p)/∂yaw = −yaw_rate (R p)_xy
         dvel[:, :, 1, 2] = -v[:, 2:3] * turned[..., 1]
-        return BoxPoints(P, JP, dvel)
+        return BoxPoints(P, JP, dvel, distance, gradient)
 
 
 def _yaw_matrices(yaw: np.ndarray) -> np.ndarray:

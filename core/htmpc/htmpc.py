@@ -169,18 +169,22 @@ class HTMPC:
     def warm_start(self, state: RobotState) -> _Iterate:
         """The previous solution shifted to now and rolled out from the measured state (zero input if none)."""
         N, dt = self.params.N, self.params.dt_s
+        lim = self.robot.limits
         a = np.zeros((N, 9))
         prev = self._previous
         if prev is not None:
+            j = ((state.t - prev.t) / dt + np.arange(N) + 0.5).astype(int)
+            kept = j < N
+            a[kept] = prev.a[np.clip(j[kept], 0, N - 1)]
+        v0 = lim.clip_velocity(state.v)
+        # v_{k+1} = clip(v_k + dt a_k), q_{k+1} = q_k + dt (v_k + v_{k+1}) / 2: cumulative sums (the same additions
+        # in the same order as the loop) unless a velocity limit clips, then node by node
+        v = np.add.accumulate(np.vstack([v0, dt * a]))
+        if np.any(np.abs(v) > lim.v_max):
+            v[0] = v0
             for k in range(N):
-                j = int((state.t - prev.t) / dt + k + 0.5)
-                a[k] = prev.a[min(max(j, 0), N - 1)] if j < N else 0.0
-        q = np.empty((N + 1, 9))
-        v = np.empty((N + 1, 9))
-        q[0], v[0] = state.q, self.robot.limits.clip_velocity(state.v)
-        for k in range(N):
-            v[k + 1] = np.clip(v[k] + dt * a[k], -self.robot.limits.v_max, self.robot.limits.v_max)
-            q[k + 1] = q[k] + dt * 0.5 * (v[k] + v[k + 1])
+                v[k + 1] = np.clip(v[k] + dt * a[k], -lim.v_max, lim.v_max)
+        q = np.add.accumulate(np.vstack([state.q, dt * 0.5 * (v[:-1] + v[1:])]))
         return _Iterate(state.t, q, v, a)
 
     def _linearise(self, order: list[str], refs: References, q_bar: np.ndarray,
