@@ -115,6 +115,8 @@ class StepResult:
     """FK at the new iterate (set by the trust-region test)."""
     level_solutions: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)
     """(q, v, a) of each level's QP solution, in order (the last is the plan)."""
+    qp_iterations: int = 0
+    """HPIPM iterations summed over the levels (rescue attempts included)."""
 
 
 class HTMPC:
@@ -214,7 +216,7 @@ class HTMPC:
         bounds: list[LexBound] = []
         tol = lex_tolerances(p)
         best, level_ms, level_errors, solutions = None, [], [], []
-        failed, message = None, ""
+        failed, message, qp_iterations = None, "", 0
         guess = None
         for i, level in enumerate(levels):
             n_lex = sum(b.lin.e0.shape[1] for b in bounds)
@@ -229,6 +231,7 @@ class HTMPC:
                 guess = qp.layout.pack(it.q, it.v, it.a)
             sol = qp.solve(arrays.h, arrays.g, arrays.a, arrays.lba, arrays.uba, lbx, ubx, guess)
             level_ms.append(sol.solve_ms)
+            qp_iterations += sol.iterations
             self.counts.qp_rescues += sol.rescued
             if not sol.success:
                 self.counts.level1_qp_failures += i == 0
@@ -247,11 +250,12 @@ class HTMPC:
                 level_errors.append(e)
                 bounds.append(LexBound(lins[name], e))
         if best is None:
-            return StepResult(it.q, it.v, it.a, np.zeros(0), level_ms, level_errors, 0, message, kin, lins, it.q)
+            return StepResult(it.q, it.v, it.a, np.zeros(0), level_ms, level_errors, 0, message, kin, lins, it.q,
+                              qp_iterations=qp_iterations)
         q, v, a, s = best
         min_h = float(rows.h[0].min()) if rows is not None else float("nan")
         return StepResult(q, v, a, s, level_ms, level_errors, failed, message, kin, lins, it.q, min_h,
-                          level_solutions=solutions)
+                          level_solutions=solutions, qp_iterations=qp_iterations)
 
     def _collision_rows(self, x0: np.ndarray, it: _Iterate, kin: HorizonKinematics,
                         edf: DistanceField) -> tuple[CollisionRows, StepRows]:
@@ -320,10 +324,13 @@ class HTMPC:
         iters = p.sqp_iters_on_switch if (refs.switched or self._previous is None) else p.sqp_iters
         damping = p.sqp_damping_on_switch if iters > 1 else p.sqp_damping
         step, level_ms = None, np.zeros(len(order) if p.hierarchy == "lexicographic" else 1)
+        sqp_iterations = qp_iterations = 0
         try:
             for _ in range(max(1, iters)):
                 step = self.iterate(x0, it, order, refs, edf, damping)
                 level_ms[: len(step.level_ms)] += step.level_ms
+                sqp_iterations += 1
+                qp_iterations += step.qp_iterations
                 if step.failed_level == 0:
                     break
                 self._adapt_trust(step, order, refs)
@@ -341,7 +348,8 @@ class HTMPC:
         if self.enforce_timeout and elapsed > p.solve_timeout_ms:
             self.counts.timeouts += 1
             return self._fallback(state, n, f"solve took {elapsed:.0f} ms > {p.solve_timeout_ms:.0f} ms")
-        plan = self._plan(state, order, refs, step, tuple(level_ms))
+        plan = self._plan(state, order, refs, step, tuple(level_ms),
+                          {"sqp_iterations": float(sqp_iterations), "qp_iterations": float(qp_iterations)})
         if not plan_is_safe(plan, self.robot.limits, tol=1e-4):
             self.counts.other_fallbacks += 1
             return self._fallback(state, n, "solution outside the limits")
@@ -409,8 +417,9 @@ class HTMPC:
         return plan
 
     def _plan(self, state: RobotState, order: list[str], refs: References, step: StepResult,
-              level_ms: tuple[float, ...]) -> Plan:
-        """The plan of a step (its EE path from the FK the trust-region test already evaluated)."""
+              level_ms: tuple[float, ...], extras: dict[str, float]) -> Plan:
+        """The plan of a step (its EE path from the FK the trust-region test already evaluated); `extras` adds to
+        the plan's diagnostics (SQP and QP iterations of the step)."""
         p = self.params
         kin = step.kin
         errors = tuple(float(np.linalg.norm(step.lins[name].e0[0])) for name in order)
@@ -425,7 +434,7 @@ class HTMPC:
         message = step.message or (f"collision slack {max_slack:.3f}" if status == PlanStatus.SLACK else "")
         return Plan(t=state.t, dt=p.dt_s, q=step.q, v=v, u=a, base_path=step.q[:, :3].copy(), ee_path=ee_path,
                     task_errors=errors, solve_ms=level_ms, status=status, message=message, min_h=step.min_h,
-                    extras={"max_slack": max_slack, "levels": float(len(step.level_ms))})
+                    extras={"max_slack": max_slack, "levels": float(len(step.level_ms)), **extras})
 
 
 def collision_row_names(robot: RobotModel, boxes: BoxBarrier) -> list[str]:
