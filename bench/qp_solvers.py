@@ -238,7 +238,7 @@ def solve_all(recorded: list[RecordedQP], solvers: list[str]) -> tuple[dict[str,
         counts["level2_qps"] += rec.level == 2
         counts["qps_with_active_collision_rows"] += form.active_collision_rows(z_ref, rec.qp) > 0
         sol = rec.qp.solve(*rec.args)
-        _log(logs["hpipm_casadi"], form, sol.z if sol.success else None, sol.solve_ms, float("nan"),
+        _log(logs["hpipm_casadi"], form, sol.z if sol.success else None, sol.solve_ms, sol.hpipm_ms,
              float(sol.iterations), f_ref)
         for name, run in runners.items():
             z, ms, solver_ms, iterations = run(rec)

@@ -46,7 +46,7 @@ from core.htmpc.level_problem import (
 )
 from core.htmpc.ocp_qp import NQ, QPLayout, StructuredQP
 from core.htmpc.safety import brake_along, braking_plan, plan_is_safe
-from core.htmpc.tasks import BaseTask, EEBaseFrameTask, EETask, Linearisation
+from core.htmpc.tasks import BaseTask, EEBaseFrameTask, EETask, Linearisation, Task
 from core.params import HTMPCParams
 from core.robot.model import RobotModel
 from core.types import Plan, PlanStatus, References, RobotState
@@ -193,11 +193,11 @@ class HTMPC:
                    kin: HorizonKinematics) -> dict[str, Linearisation]:
         out = {}
         for name in order:
-            ref = refs.base if name == "base" else refs.ee
-            out[name] = self._task(name, refs).linearise(q_bar, kin, ref)
+            task = self._task(name, refs)
+            out[name] = task.linearise(q_bar, kin, task.reference(refs))
         return out
 
-    def _task(self, name: str, refs: References):
+    def _task(self, name: str, refs: References) -> Task:
         """The task object for `name` under these references (the base-frame EE task for a base-frame target)."""
         return self.ee_base_task if name == "ee" and refs.ee.frame == "base" else self.tasks[name]
 
@@ -275,10 +275,9 @@ class HTMPC:
 
     def _true_errors(self, q: np.ndarray, names: list[str], refs: References) -> np.ndarray:
         """The exact (nonlinear) errors of tasks `names` at nodes 1..N of q, side by side (N, Σm)."""
-        kin = self.kinematics(q) if "ee" in names else None
-        errs = [self.tasks[n].compute_error(q, refs.base) if n == "base" else self.tasks[n].compute_error(kin, refs.ee)
-                for n in names]
-        return np.concatenate(errs, axis=1)[1:]
+        tasks = [self._task(n, refs) for n in names]
+        kin = self.kinematics(q) if any(t.needs_kinematics for t in tasks) else None
+        return np.concatenate([t.compute_error(q, kin, t.reference(refs)) for t in tasks], axis=1)[1:]
 
     def _keep_priority(self, layout: QPLayout, z_prev: np.ndarray, z_new: np.ndarray, earlier: list[str],
                        refs: References, tol: np.ndarray) -> np.ndarray:
@@ -290,8 +289,8 @@ class HTMPC:
         (at a stretched arm, 0.5 rad of arm motion that the model says keeps the EE in place moved it 0.7 m),
         and in closed loop level 1 then settles far from its optimum. Every α is feasible for this level's QP:
         both ends are, and its constraints are linear."""
-        if all(n == "base" for n in earlier):
-            return z_new  # the base errors are linear in q: the QP's bound is exact
+        if all(self._task(n, refs).linear_in_q for n in earlier):
+            return z_new  # errors affine in q (the base's): the QP's bound is exact
         e_ref = self._true_errors(layout.states(z_prev)[0], earlier, refs)
         lo, hi = lex_limits(e_ref, tol)
         step = z_new - z_prev
@@ -309,7 +308,7 @@ class HTMPC:
         p = self.params
         t0 = time.perf_counter()
         self.counts.solves += 1
-        order = [name for name in refs.order if (refs.base if name == "base" else refs.ee) is not None]
+        order = [name for name in refs.order if self.tasks[name].reference(refs) is not None]
         n = len(order)
         if not (np.all(np.isfinite(state.q)) and np.all(np.isfinite(state.v)) and np.isfinite(state.t)):
             self.counts.other_fallbacks += 1
@@ -363,12 +362,7 @@ class HTMPC:
         total = 0.0
         for name in order:
             task = self._task(name, refs)
-            if name == "base":
-                e = task.compute_error(q, refs.base)
-            elif task is self.ee_base_task:
-                e = task.compute_error(q, kin, refs.ee)
-            else:
-                e = task.compute_error(kin, refs.ee)
+            e = task.compute_error(q, kin, task.reference(refs))
             total += 0.5 * float(np.sum(task.weights[: e.shape[1]] * e[1:] ** 2))
         return total
 

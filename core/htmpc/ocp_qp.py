@@ -50,6 +50,9 @@ class QPSolution:
     solve_ms: float
     rescued: bool = False
     """The first solve stalled and this is the second attempt's (`RESCUE_MODE`)."""
+    hpipm_ms: float = float("nan")
+    """HPIPM's own time inside casadi's call (casadi's `t_wall_solver`), attempts summed: `solve_ms` minus this
+    is the price of the call from Python."""
 
 
 class QPLayout:
@@ -172,6 +175,8 @@ class StructuredQP:
         self._opts = opts
         self._call_buffer = BufferedFunction(self.solver, rebind=True)
         self._rescue: BufferedFunction | None = None
+        self._solver_s: dict[int, float] = {}
+        """casadi's `t_wall_solver` per buffer at its last call (a buffer's statistics accumulate over calls)."""
         self.A_dynamics_nz = self._dynamics_nz()
         self.H_qq = np.stack([self.H_pos[L.q(k), L.q(k)] for k in range(L.N + 1)])
         self.H_vv = np.stack([self.H_pos[L.v(k), L.v(k)] for k in range(L.N + 1)])
@@ -220,12 +225,13 @@ class StructuredQP:
         if not (np.all(np.isfinite(h_nz)) and np.all(np.isfinite(a_nz)) and np.all(np.isfinite(g))):
             return QPSolution(np.full(self.layout.nv, np.nan), False, "non-finite QP data", 0, 0.0)
         args = (h_nz, g, a_nz, lba, uba, lbx, ubx, np.zeros(self.layout.nv) if guess is None else guess)
-        z, ok, status, iters = self._call(self._call_buffer, args)
+        z, ok, status, iters, hpipm_ms = self._call(self._call_buffer, args)
         if not ok and status in ("1", "2"):  # stalled: iteration limit or minimum step (`RESCUE_MODE`)
-            z, ok, again, more = self._call(self._rescue_solver(), args)
+            z, ok, again, more, again_ms = self._call(self._rescue_solver(), args)
             status, iters = f"{status}, {RESCUE_MODE} {again}", iters + more
-            return QPSolution(z, ok, status, iters, (time.perf_counter() - t0) * 1e3, rescued=True)
-        return QPSolution(z, ok, status, iters, (time.perf_counter() - t0) * 1e3)
+            return QPSolution(z, ok, status, iters, (time.perf_counter() - t0) * 1e3, rescued=True,
+                              hpipm_ms=hpipm_ms + again_ms)
+        return QPSolution(z, ok, status, iters, (time.perf_counter() - t0) * 1e3, hpipm_ms=hpipm_ms)
 
     def _rescue_solver(self) -> BufferedFunction:
         """The same QP in HPIPM's `RESCUE_MODE`, built on first need (tens of ms, rare)."""
@@ -235,9 +241,10 @@ class StructuredQP:
             self._rescue = BufferedFunction(solver, rebind=True)
         return self._rescue
 
-    def _call(self, solver: BufferedFunction, args: tuple[np.ndarray, ...]) -> tuple[np.ndarray, bool, str, int]:
-        """One HPIPM call on (h, g, a, lba, uba, lbx, ubx, x0): (z, success, HPIPM's status, iterations).
-        The multipliers' warm start (lam_x0, lam_a0) stays zero: HPIPM's `warm_start` 1 uses the primal only."""
+    def _call(self, solver: BufferedFunction,
+              args: tuple[np.ndarray, ...]) -> tuple[np.ndarray, bool, str, int, float]:
+        """One HPIPM call on (h, g, a, lba, uba, lbx, ubx, x0): (z, success, HPIPM's status, iterations, HPIPM's
+        own ms). The multipliers' warm start (lam_x0, lam_a0) stays zero: `warm_start` 1 uses the primal only."""
         for buffer, value in zip(solver.inputs, args, strict=False):
             buffer[:] = value
         for buffer in solver.inputs[len(args):]:
@@ -245,8 +252,11 @@ class StructuredQP:
         try:
             solver.evaluate()
         except RuntimeError as err:  # casadi raises on malformed input
-            return np.full(self.layout.nv, np.nan), False, f"solver error: {err}", 0
+            return np.full(self.layout.nv, np.nan), False, f"solver error: {err}", 0, float("nan")
         stats = solver.stats()
         z = solver.outputs[0].copy()
         ok = bool(stats.get("success", False)) and bool(np.all(np.isfinite(z)))
-        return z, ok, str(stats.get("return_status", "")), int(stats.get("iter_count", -1))
+        total_s = float(stats.get("t_wall_solver", float("nan")))
+        hpipm_ms = (total_s - self._solver_s.get(id(solver), 0.0)) * 1e3
+        self._solver_s[id(solver)] = total_s
+        return z, ok, str(stats.get("return_status", "")), int(stats.get("iter_count", -1)), hpipm_ms
