@@ -11,7 +11,6 @@ earlier level i, |e_i,k| ≤ |e_i,k*| + tol_k (7c, hard).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
@@ -57,10 +56,13 @@ def base_arrays(qp: StructuredQP, params: HTMPCParams, q_bar: np.ndarray, rows: 
                 damping: float | None = None, step: StepRows | None = None) -> LevelArrays:
     """Everything but the task costs and (7c): regularisation, slack costs, dynamics and collision rows (at
     nodes 1..N−1, and `step` in the first interval's acceleration). `damping` is λ of ½ λ ‖q − q̄‖² (default
-    `params.sqp_damping`). The parts that do not change between steps come from a cached `_base_template`."""
+    `params.sqp_damping`). The parts that do not change between steps are built once per parameter set and λ
+    (`_base_template`, kept by the QP) and copied."""
     L = qp.layout
     lam = params.sqp_damping if damping is None else damping
-    t = _base_template(qp, params, lam)
+    t = qp.level_templates.get((params, lam))
+    if t is None:
+        t = qp.level_templates[(params, lam)] = _base_template(qp, params, lam)
     h, g, a, lba, uba = t.h.copy(), t.g.copy(), t.a.copy(), t.lba.copy(), t.uba.copy()
     g[L.idx_q] -= lam * q_bar
     if step is not None:
@@ -73,11 +75,10 @@ def base_arrays(qp: StructuredQP, params: HTMPCParams, q_bar: np.ndarray, rows: 
     return LevelArrays(h, g, a, lba, uba)
 
 
-@lru_cache(maxsize=64)
 def _base_template(qp: StructuredQP, params: HTMPCParams, lam: float) -> LevelArrays:
     """The constant part of `base_arrays` for one layout, parameter set and damping λ: H of the damping, J_aux
     and the slacks, the slacks' linear cost, the dynamics, the slacks' columns, one-sided collision rows (no
-    row without a map). Built once; callers copy it."""
+    row without a map). Read-only; `base_arrays` copies it."""
     dt, L = params.dt_s, qp.layout
     h = np.zeros(qp.H_sp.nnz())
     eye = np.eye(NQ)

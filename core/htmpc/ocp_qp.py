@@ -175,6 +175,8 @@ class StructuredQP:
         self._opts = opts
         self._call_buffer = BufferedFunction(self.solver, rebind=True)
         self._rescue: BufferedFunction | None = None
+        self.level_templates: dict[tuple, object] = {}
+        """The constant part of a level's data per (parameters, damping), built once by `level_problem`."""
         self._solver_s: dict[int, float] = {}
         """casadi's `t_wall_solver` per buffer at its last call (a buffer's statistics accumulate over calls)."""
         self.A_dynamics_nz = self._dynamics_nz()
