@@ -38,6 +38,12 @@ class BoxPoints:
     P: np.ndarray
     JP: np.ndarray
     dvel_dq: np.ndarray
+    distance: np.ndarray | None = None
+    """EDF at P (K,R) and its gradient (K,R,3), from the lookup that chose the points (no second lookup)."""
+    gradient: np.ndarray | None = None
+    also: tuple[np.ndarray, np.ndarray] | None = None
+    """EDF value and gradient at the extra points `points(..., also=)` asked for, from the same batch of
+    queries (the collision spheres: one EDF lookup fewer per SQP iteration)."""
 
 
 class BoxBarrier:
@@ -65,23 +71,42 @@ class BoxBarrier:
 
     def local_points(self, q: np.ndarray, edf: DistanceField) -> np.ndarray:
         """Base-frame closest points (K, rows, 3) of each row's box to the obstacles, at base poses q[:, :3]."""
+        return self._closest(q, edf)[0]
+
+    def _closest(self, q: np.ndarray, edf: DistanceField, also: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
+        """`local_points` with the EDF's value (K, rows) and gradient (K, rows, 3) there, and the EDF's value and
+        gradient at the points `also` (K, A, 3) (None if not given), queried with the first batch."""
         turn = _yaw_matrices(q[:, 2])  # row vectors: world offset = local @ turn
         origin = np.column_stack([q[:, 0], q[:, 1], np.zeros(len(q))])[:, None]
         local = np.broadcast_to(self.seeds, (len(q), *self.seeds.shape))
+        extra = None
+
+        def lookup(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            nonlocal extra
+            if also is None or extra is not None:
+                return distance_and_gradient(edf, p)
+            d, g = distance_and_gradient(edf, np.concatenate([also, p], axis=1))
+            n = also.shape[1]
+            extra = (d[:, :n], g[:, :n])
+            return d[:, n:], g[:, n:]
+
         for _ in range(self.iterations):
             p = origin + local @ turn
-            d, g = distance_and_gradient(edf, p)
+            d, g = lookup(p)
             norm = np.linalg.norm(g, axis=-1)
             ok = (norm > FLAT_GRADIENT) & np.isfinite(d)  # a broken map moves no point (its rows fail the QP)
             step = np.where(ok, d / np.where(ok, norm, 1.0), 0.0)[..., None] * np.where(ok[..., None], g, 0.0)
             local = np.clip((p - step - origin) @ np.swapaxes(turn, 1, 2), self.lo, self.hi)
-        d = edf.distance(origin + local @ turn)
+        d, g = lookup(origin + local @ turn)
         best = np.take_along_axis(self.groups[None], np.argmin(d[:, self.groups], axis=2)[..., None], axis=2)[..., 0]
-        return np.take_along_axis(local, best[..., None], axis=1)
+        return (np.take_along_axis(local, best[..., None], axis=1), np.take_along_axis(d, best, axis=1),
+                np.take_along_axis(g, best[..., None], axis=1), extra)
 
-    def points(self, q: np.ndarray, v: np.ndarray, edf: DistanceField) -> BoxPoints:
-        """The rows' points at nodes q (K, 9) with velocities v (K, 9): world positions and Jacobians."""
-        local = self.local_points(q, edf)
+    def points(self, q: np.ndarray, v: np.ndarray, edf: DistanceField, also: np.ndarray | None = None) -> BoxPoints:
+        """The rows' points at nodes q (K, 9) with velocities v (K, 9): world positions, Jacobians, and the EDF
+        there (and at the points `also` (K, A, 3), see `BoxPoints.also`)."""
+        local, distance, gradient, at_also = self._closest(q, edf, also)
         turned = local @ _yaw_matrices(q[:, 2])  # R(yaw) p_local
         K, R = local.shape[:2]
         P = turned + np.column_stack([q[:, 0], q[:, 1], np.zeros(K)])[:, None]
@@ -93,7 +118,7 @@ class BoxBarrier:
         dvel = np.zeros((K, R, 3, 9))
         dvel[:, :, 0, 2] = -v[:, 2:3] * turned[..., 0]  # ∂/∂yaw of yaw_rate · ∂(R p)/∂yaw = −yaw_rate (R p)_xy
         dvel[:, :, 1, 2] = -v[:, 2:3] * turned[..., 1]
-        return BoxPoints(P, JP, dvel)
+        return BoxPoints(P, JP, dvel, distance, gradient, at_also)
 
 
 def _yaw_matrices(yaw: np.ndarray) -> np.ndarray:

@@ -1,9 +1,10 @@
 """A casadi `Function` evaluated in place on numpy buffers, optionally compiled with gcc (casadi's JIT).
 
-A plain call spends most of its time converting the `DM` result to numpy; compiled and called through
-casadi's `Function.buffer()` on preallocated numpy arrays the same evaluation is an order of magnitude
-cheaper (docs/decisions.md, "Kinematics over the horizon in one compiled call"). Kinematics only: the
-HPIPM-backed QP is called normally (a buffered `conic` returned wrong points flagged as successes).
+A plain call spends most of its time converting numpy to `DM` and back (casadi converts element by element);
+called through casadi's `Function.buffer()` on preallocated numpy arrays the same evaluation is an order of
+magnitude cheaper (docs/decisions.md, "Kinematics over the horizon in one compiled call", "The QP through a
+re-bound buffer"). A solver (`conic`) needs `rebind=True`: its evaluation replaces the argument pointers it
+was given, so without re-binding every call after the first solved with stale data.
 """
 
 from __future__ import annotations
@@ -41,18 +42,30 @@ class BufferedFunction:
     column-major non-zero order; write the inputs, call `evaluate()`, read (copy) the outputs.
     """
 
-    def __init__(self, fn: ca.Function) -> None:
+    def __init__(self, fn: ca.Function, rebind: bool = False) -> None:
         self.fn = fn
+        self.rebind = rebind
+        """Bind the buffers again before every call: needed for a casadi solver (`conic`), whose evaluation
+        overwrites the bound argument pointers (casadi 3.8 with HPIPM: every call after the first returned
+        wrong points flagged as successes; re-bound, 168 of 168 closed-loop QPs equalled the `DM` call bit for
+        bit)."""
         self._buffer, self._trigger = fn.buffer()
         self.inputs = [np.zeros(fn.nnz_in(i)) for i in range(fn.n_in())]
         self.outputs = [np.zeros(fn.nnz_out(i)) for i in range(fn.n_out())]
-        for i, a in enumerate(self.inputs):
-            self._buffer.set_arg(i, memoryview(a))
-        for i, a in enumerate(self.outputs):
-            self._buffer.set_res(i, memoryview(a))
+        self._views = ([memoryview(a) for a in self.inputs], [memoryview(a) for a in self.outputs])
+        self._bind()
+
+    def _bind(self) -> None:
+        ins, outs = self._views
+        for i, view in enumerate(ins):
+            self._buffer.set_arg(i, view)
+        for i, view in enumerate(outs):
+            self._buffer.set_res(i, view)
 
     def evaluate(self) -> int:
         """Run the function on the current inputs; returns casadi's return flag (0 = fine)."""
+        if self.rebind:
+            self._bind()
         self._trigger()
         return int(self._buffer.ret())
 

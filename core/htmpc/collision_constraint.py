@@ -106,11 +106,13 @@ class CollisionConstraint:
                 edf: DistanceField) -> CollisionRows:
         """Rows at any K configurations q (K, 9) with velocities v, given their spheres' centres P (K, M, 3),
         Jacobians JP and ∂(J_P v)/∂q; the base boxes' rows are added here. One batch of EDF queries for all."""
-        if self.boxes is not None:
-            pts = self.boxes.points(q, v, edf)
-            P, JP = np.concatenate([P, pts.P], axis=1), np.concatenate([JP, pts.JP], axis=1)
-            dvel = np.concatenate([dvel, pts.dvel_dq], axis=1)
-        d, grad = distance_and_gradient(edf, P)
+        if self.boxes is not None:  # the spheres' EDF comes with the boxes' first batch of queries (`BoxPoints`)
+            pts = self.boxes.points(q, v, edf, also=P)
+            JP, dvel = np.concatenate([JP, pts.JP], axis=1), np.concatenate([dvel, pts.dvel_dq], axis=1)
+            d, grad = np.concatenate([pts.also[0], pts.distance], axis=1), np.concatenate([pts.also[1], pts.gradient],
+                                                                                         axis=1)
+        else:
+            d, grad = distance_and_gradient(edf, P)
         h = d - self.radii - self.delta_safe_m
         g = np.einsum("kmc,kmcj->kmj", grad, JP)
         gq = np.einsum("kmj,kj->km", g, q)

@@ -14,7 +14,8 @@ Public API: `HTMPC(robot, params).solve(state, refs, edf) -> Plan` (edf: anythin
 and `enforce_timeout` (False in lockstep runs: simulated time waits for the solver). A failed QP, an
 exception of any type, a non-finite state or map, a slow solve or an out-of-limit solution gives a braking
 plan along the last plan handed out (status FALLBACK or STOPPING, the reason in `message`; safety.py);
-`counts` tallies them (`SolveCounts`).
+`counts` tallies them (`SolveCounts`). One solve at a time per instance: the kinematics and the QPs evaluate in
+place on the controller's preallocated buffers (callers serialise steps, e.g. `app.closed_loop`'s step lock).
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ from core.htmpc.level_problem import (
 )
 from core.htmpc.ocp_qp import NQ, QPLayout, StructuredQP
 from core.htmpc.safety import brake_along, braking_plan, plan_is_safe
-from core.htmpc.tasks import BaseTask, EEBaseFrameTask, EETask, Linearisation
+from core.htmpc.tasks import BaseTask, EEBaseFrameTask, EETask, Linearisation, Task
 from core.params import HTMPCParams
 from core.robot.model import RobotModel
 from core.types import Plan, PlanStatus, References, RobotState
@@ -115,6 +116,8 @@ class StepResult:
     """FK at the new iterate (set by the trust-region test)."""
     level_solutions: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)
     """(q, v, a) of each level's QP solution, in order (the last is the plan)."""
+    qp_iterations: int = 0
+    """HPIPM iterations summed over the levels (rescue attempts included)."""
 
 
 class HTMPC:
@@ -169,29 +172,33 @@ class HTMPC:
     def warm_start(self, state: RobotState) -> _Iterate:
         """The previous solution shifted to now and rolled out from the measured state (zero input if none)."""
         N, dt = self.params.N, self.params.dt_s
+        lim = self.robot.limits
         a = np.zeros((N, 9))
         prev = self._previous
         if prev is not None:
+            j = ((state.t - prev.t) / dt + np.arange(N) + 0.5).astype(int)
+            kept = j < N
+            a[kept] = prev.a[np.clip(j[kept], 0, N - 1)]
+        v0 = lim.clip_velocity(state.v)
+        # v_{k+1} = clip(v_k + dt a_k), q_{k+1} = q_k + dt (v_k + v_{k+1}) / 2: cumulative sums (the same additions
+        # in the same order as the loop) unless a velocity limit clips, then node by node
+        v = np.add.accumulate(np.vstack([v0, dt * a]))
+        if np.any(np.abs(v) > lim.v_max):
+            v[0] = v0
             for k in range(N):
-                j = int((state.t - prev.t) / dt + k + 0.5)
-                a[k] = prev.a[min(max(j, 0), N - 1)] if j < N else 0.0
-        q = np.empty((N + 1, 9))
-        v = np.empty((N + 1, 9))
-        q[0], v[0] = state.q, self.robot.limits.clip_velocity(state.v)
-        for k in range(N):
-            v[k + 1] = np.clip(v[k] + dt * a[k], -self.robot.limits.v_max, self.robot.limits.v_max)
-            q[k + 1] = q[k] + dt * 0.5 * (v[k] + v[k + 1])
+                v[k + 1] = np.clip(v[k] + dt * a[k], -lim.v_max, lim.v_max)
+        q = np.add.accumulate(np.vstack([state.q, dt * 0.5 * (v[:-1] + v[1:])]))
         return _Iterate(state.t, q, v, a)
 
     def _linearise(self, order: list[str], refs: References, q_bar: np.ndarray,
                    kin: HorizonKinematics) -> dict[str, Linearisation]:
         out = {}
         for name in order:
-            ref = refs.base if name == "base" else refs.ee
-            out[name] = self._task(name, refs).linearise(q_bar, kin, ref)
+            task = self._task(name, refs)
+            out[name] = task.linearise(q_bar, kin, task.reference(refs))
         return out
 
-    def _task(self, name: str, refs: References):
+    def _task(self, name: str, refs: References) -> Task:
         """The task object for `name` under these references (the base-frame EE task for a base-frame target)."""
         return self.ee_base_task if name == "ee" and refs.ee.frame == "base" else self.tasks[name]
 
@@ -210,7 +217,7 @@ class HTMPC:
         bounds: list[LexBound] = []
         tol = lex_tolerances(p)
         best, level_ms, level_errors, solutions = None, [], [], []
-        failed, message = None, ""
+        failed, message, qp_iterations = None, "", 0
         guess = None
         for i, level in enumerate(levels):
             n_lex = sum(b.lin.e0.shape[1] for b in bounds)
@@ -225,6 +232,7 @@ class HTMPC:
                 guess = qp.layout.pack(it.q, it.v, it.a)
             sol = qp.solve(arrays.h, arrays.g, arrays.a, arrays.lba, arrays.uba, lbx, ubx, guess)
             level_ms.append(sol.solve_ms)
+            qp_iterations += sol.iterations
             self.counts.qp_rescues += sol.rescued
             if not sol.success:
                 self.counts.level1_qp_failures += i == 0
@@ -243,11 +251,12 @@ class HTMPC:
                 level_errors.append(e)
                 bounds.append(LexBound(lins[name], e))
         if best is None:
-            return StepResult(it.q, it.v, it.a, np.zeros(0), level_ms, level_errors, 0, message, kin, lins, it.q)
+            return StepResult(it.q, it.v, it.a, np.zeros(0), level_ms, level_errors, 0, message, kin, lins, it.q,
+                              qp_iterations=qp_iterations)
         q, v, a, s = best
         min_h = float(rows.h[0].min()) if rows is not None else float("nan")
         return StepResult(q, v, a, s, level_ms, level_errors, failed, message, kin, lins, it.q, min_h,
-                          level_solutions=solutions)
+                          level_solutions=solutions, qp_iterations=qp_iterations)
 
     def _collision_rows(self, x0: np.ndarray, it: _Iterate, kin: HorizonKinematics,
                         edf: DistanceField) -> tuple[CollisionRows, StepRows]:
@@ -267,10 +276,9 @@ class HTMPC:
 
     def _true_errors(self, q: np.ndarray, names: list[str], refs: References) -> np.ndarray:
         """The exact (nonlinear) errors of tasks `names` at nodes 1..N of q, side by side (N, Σm)."""
-        kin = self.kinematics(q) if "ee" in names else None
-        errs = [self.tasks[n].compute_error(q, refs.base) if n == "base" else self.tasks[n].compute_error(kin, refs.ee)
-                for n in names]
-        return np.concatenate(errs, axis=1)[1:]
+        tasks = [self._task(n, refs) for n in names]
+        kin = self.kinematics(q) if any(t.needs_kinematics for t in tasks) else None
+        return np.concatenate([t.compute_error(q, kin, t.reference(refs)) for t in tasks], axis=1)[1:]
 
     def _keep_priority(self, layout: QPLayout, z_prev: np.ndarray, z_new: np.ndarray, earlier: list[str],
                        refs: References, tol: np.ndarray) -> np.ndarray:
@@ -282,8 +290,8 @@ class HTMPC:
         (at a stretched arm, 0.5 rad of arm motion that the model says keeps the EE in place moved it 0.7 m),
         and in closed loop level 1 then settles far from its optimum. Every α is feasible for this level's QP:
         both ends are, and its constraints are linear."""
-        if all(n == "base" for n in earlier):
-            return z_new  # the base errors are linear in q: the QP's bound is exact
+        if all(self._task(n, refs).linear_in_q for n in earlier):
+            return z_new  # errors affine in q (the base's): the QP's bound is exact
         e_ref = self._true_errors(layout.states(z_prev)[0], earlier, refs)
         lo, hi = lex_limits(e_ref, tol)
         step = z_new - z_prev
@@ -301,7 +309,7 @@ class HTMPC:
         p = self.params
         t0 = time.perf_counter()
         self.counts.solves += 1
-        order = [name for name in refs.order if (refs.base if name == "base" else refs.ee) is not None]
+        order = [name for name in refs.order if self.tasks[name].reference(refs) is not None]
         n = len(order)
         if not (np.all(np.isfinite(state.q)) and np.all(np.isfinite(state.v)) and np.isfinite(state.t)):
             self.counts.other_fallbacks += 1
@@ -316,10 +324,13 @@ class HTMPC:
         iters = p.sqp_iters_on_switch if (refs.switched or self._previous is None) else p.sqp_iters
         damping = p.sqp_damping_on_switch if iters > 1 else p.sqp_damping
         step, level_ms = None, np.zeros(len(order) if p.hierarchy == "lexicographic" else 1)
+        sqp_iterations = qp_iterations = 0
         try:
             for _ in range(max(1, iters)):
                 step = self.iterate(x0, it, order, refs, edf, damping)
                 level_ms[: len(step.level_ms)] += step.level_ms
+                sqp_iterations += 1
+                qp_iterations += step.qp_iterations
                 if step.failed_level == 0:
                     break
                 self._adapt_trust(step, order, refs)
@@ -337,7 +348,8 @@ class HTMPC:
         if self.enforce_timeout and elapsed > p.solve_timeout_ms:
             self.counts.timeouts += 1
             return self._fallback(state, n, f"solve took {elapsed:.0f} ms > {p.solve_timeout_ms:.0f} ms")
-        plan = self._plan(state, order, refs, step, tuple(level_ms))
+        plan = self._plan(state, order, refs, step, tuple(level_ms),
+                          {"sqp_iterations": float(sqp_iterations), "qp_iterations": float(qp_iterations)})
         if not plan_is_safe(plan, self.robot.limits, tol=1e-4):
             self.counts.other_fallbacks += 1
             return self._fallback(state, n, "solution outside the limits")
@@ -351,12 +363,7 @@ class HTMPC:
         total = 0.0
         for name in order:
             task = self._task(name, refs)
-            if name == "base":
-                e = task.compute_error(q, refs.base)
-            elif task is self.ee_base_task:
-                e = task.compute_error(q, kin, refs.ee)
-            else:
-                e = task.compute_error(kin, refs.ee)
+            e = task.compute_error(q, kin, task.reference(refs))
             total += 0.5 * float(np.sum(task.weights[: e.shape[1]] * e[1:] ** 2))
         return total
 
@@ -405,8 +412,9 @@ class HTMPC:
         return plan
 
     def _plan(self, state: RobotState, order: list[str], refs: References, step: StepResult,
-              level_ms: tuple[float, ...]) -> Plan:
-        """The plan of a step (its EE path from the FK the trust-region test already evaluated)."""
+              level_ms: tuple[float, ...], extras: dict[str, float]) -> Plan:
+        """The plan of a step (its EE path from the FK the trust-region test already evaluated); `extras` adds to
+        the plan's diagnostics (SQP and QP iterations of the step)."""
         p = self.params
         kin = step.kin
         errors = tuple(float(np.linalg.norm(step.lins[name].e0[0])) for name in order)
@@ -421,7 +429,7 @@ class HTMPC:
         message = step.message or (f"collision slack {max_slack:.3f}" if status == PlanStatus.SLACK else "")
         return Plan(t=state.t, dt=p.dt_s, q=step.q, v=v, u=a, base_path=step.q[:, :3].copy(), ee_path=ee_path,
                     task_errors=errors, solve_ms=level_ms, status=status, message=message, min_h=step.min_h,
-                    extras={"max_slack": max_slack, "levels": float(len(step.level_ms))})
+                    extras={"max_slack": max_slack, "levels": float(len(step.level_ms)), **extras})
 
 
 def collision_row_names(robot: RobotModel, boxes: BoxBarrier) -> list[str]:

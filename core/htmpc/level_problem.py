@@ -49,46 +49,53 @@ def task_cost(arrays: LevelArrays, qp: StructuredQP, lin: Linearisation, q_bar: 
     arrays.h[qp.H_qq[1:]] += dt * JtWJ
     arrays.h[qp.H_vv[1:]] += dt * params.Q_edot * JtWJ
     lin_term = dt * np.einsum("kjm,km->kj", JtW, e0 - np.einsum("kmj,kj->km", J, q_bar[1:]))
-    for k in range(1, L.N + 1):
-        arrays.g[L.q(k)] += lin_term[k - 1]
+    arrays.g[L.idx_q[1:]] += lin_term
 
 
 def base_arrays(qp: StructuredQP, params: HTMPCParams, q_bar: np.ndarray, rows: CollisionRows | None,
                 damping: float | None = None, step: StepRows | None = None) -> LevelArrays:
     """Everything but the task costs and (7c): regularisation, slack costs, dynamics and collision rows (at
     nodes 1..N−1, and `step` in the first interval's acceleration). `damping` is λ of ½ λ ‖q − q̄‖² (default
-    `params.sqp_damping`)."""
-    dt, L = params.dt_s, qp.layout
-    h = np.zeros(qp.H_sp.nnz())
-    g = np.zeros(L.nv)
-    eye = np.eye(NQ)
+    `params.sqp_damping`). The parts that do not change between steps are built once per parameter set and λ
+    (`_base_template`, kept by the QP) and copied."""
+    L = qp.layout
     lam = params.sqp_damping if damping is None else damping
-    h[qp.H_qq] += lam * eye  # ½ λ ‖q − q̄‖²: Levenberg-Marquardt damping, also keeps H > 0
-    for k in range(L.N + 1):
-        g[L.q(k)] -= lam * q_bar[k]
-    h[qp.H_vv[1:]] += dt * params.Q_x * eye
-    h[qp.H_aa] += dt * params.Q_u
-    h[qp.H_ss] += 2.0 * params.slack_quadratic
-    for k in range(L.N):
-        g[L.s(k)] += params.slack_linear
-    a = qp.A_dynamics_nz.copy()
-    lba = np.zeros(L.na)
-    uba = np.zeros(L.na)
-    a[qp.A_col_s] = 1.0
-    a[qp.A_step_s] = 1.0
-    uba[qp.row_col] = np.inf
-    uba[qp.row_step] = np.inf
+    t = qp.level_templates.get((params, lam))
+    if t is None:
+        t = qp.level_templates[(params, lam)] = _base_template(qp, params, lam)
+    h, g, a, lba, uba = t.h.copy(), t.g.copy(), t.a.copy(), t.lba.copy(), t.uba.copy()
+    g[L.idx_q] -= lam * q_bar
     if step is not None:
         a[qp.A_step_a] = step.a_a
         lba[qp.row_step] = step.lb
-    else:
-        lba[qp.row_step] = -np.inf
     if rows is not None:
         a[qp.A_col_q] = rows.a_q[: L.N - 1]
         a[qp.A_col_v] = rows.a_v[: L.N - 1]
         lba[qp.row_col] = rows.lb[: L.N - 1]
-    else:
-        lba[qp.row_col] = -np.inf
+    return LevelArrays(h, g, a, lba, uba)
+
+
+def _base_template(qp: StructuredQP, params: HTMPCParams, lam: float) -> LevelArrays:
+    """The constant part of `base_arrays` for one layout, parameter set and damping λ: H of the damping, J_aux
+    and the slacks, the slacks' linear cost, the dynamics, the slacks' columns, one-sided collision rows (no
+    row without a map). Read-only; `base_arrays` copies it."""
+    dt, L = params.dt_s, qp.layout
+    h = np.zeros(qp.H_sp.nnz())
+    eye = np.eye(NQ)
+    h[qp.H_qq] += lam * eye  # ½ λ ‖q − q̄‖²: Levenberg-Marquardt damping, also keeps H > 0
+    h[qp.H_vv[1:]] += dt * params.Q_x * eye
+    h[qp.H_aa] += dt * params.Q_u
+    h[qp.H_ss] += 2.0 * params.slack_quadratic
+    g = np.zeros(L.nv)
+    g[L.idx_s] += params.slack_linear
+    a = qp.A_dynamics_nz.copy()
+    a[qp.A_col_s] = 1.0
+    a[qp.A_step_s] = 1.0
+    lba, uba = np.zeros(L.na), np.zeros(L.na)
+    uba[qp.row_col] = uba[qp.row_step] = np.inf
+    lba[qp.row_col] = lba[qp.row_step] = -np.inf
+    for arr in (h, g, a, lba, uba):
+        arr.flags.writeable = False
     return LevelArrays(h, g, a, lba, uba)
 
 
@@ -140,17 +147,17 @@ def variable_bounds(layout: QPLayout, x0: np.ndarray, q_min: np.ndarray, q_max: 
     L = layout
     lbx = np.empty(L.nv)
     ubx = np.empty(L.nv)
-    for k in range(L.N + 1):
-        lo, hi = q_min, q_max
-        if trust is not None and q_bar is not None:
-            lo = np.maximum(q_min, np.minimum(q_bar[k] - trust, q_max))
-            hi = np.minimum(q_max, np.maximum(q_bar[k] + trust, q_min))
-        lbx[L.q(k)], ubx[L.q(k)] = lo, hi
-        vb = v_max if k != 1 else np.maximum(v_max, np.abs(x0[NQ:]) - a_max * dt + 1e-6)
-        lbx[L.v(k)], ubx[L.v(k)] = -vb, vb
-        if k < L.N:
-            lbx[L.a(k)], ubx[L.a(k)] = -a_max, a_max
-            lbx[L.s(k)], ubx[L.s(k)] = 0.0, np.inf
-    lbx[L.q(0)] = ubx[L.q(0)] = x0[:NQ]
-    lbx[L.v(0)] = ubx[L.v(0)] = x0[NQ:]
+    if trust is not None and q_bar is not None:
+        lbx[L.idx_q] = np.maximum(q_min, np.minimum(q_bar - trust, q_max))
+        ubx[L.idx_q] = np.minimum(q_max, np.maximum(q_bar + trust, q_min))
+    else:
+        lbx[L.idx_q], ubx[L.idx_q] = q_min, q_max
+    lbx[L.idx_v], ubx[L.idx_v] = -v_max, v_max
+    if L.N >= 1:
+        v1 = np.maximum(v_max, np.abs(x0[NQ:]) - a_max * dt + 1e-6)
+        lbx[L.idx_v[1]], ubx[L.idx_v[1]] = -v1, v1
+    lbx[L.idx_a], ubx[L.idx_a] = -a_max, a_max
+    lbx[L.idx_s], ubx[L.idx_s] = 0.0, np.inf
+    lbx[L.idx_q[0]] = ubx[L.idx_q[0]] = x0[:NQ]
+    lbx[L.idx_v[0]] = ubx[L.idx_v[0]] = x0[NQ:]
     return lbx, ubx

@@ -10,7 +10,9 @@ node collision rows cover nodes 1…N−1.
 
 Two traps (docs/decisions.md, "HPIPM through casadi"): matrices must be passed with their sparse
 pattern, or the structure is not detected, and casadi's default 1e-8 residual tolerances make HPIPM run
-into its iteration limit, so they are loosened to 1e-6.
+into its iteration limit, so they are loosened to 1e-6. The solver is called through a re-bound
+`BufferedFunction` on preallocated numpy arrays: building `DM` arguments from numpy cost about as much as
+HPIPM's own work (docs/decisions.md, "The QP through a re-bound buffer").
 """
 
 from __future__ import annotations
@@ -21,6 +23,8 @@ from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
+
+from core.htmpc.buffered_function import BufferedFunction
 
 log = logging.getLogger(__name__)
 
@@ -46,6 +50,9 @@ class QPSolution:
     solve_ms: float
     rescued: bool = False
     """The first solve stalled and this is the second attempt's (`RESCUE_MODE`)."""
+    hpipm_ms: float = float("nan")
+    """HPIPM's own time inside casadi's call (casadi's `t_wall_solver`), attempts summed: `solve_ms` minus this
+    is the price of the call from Python."""
 
 
 class QPLayout:
@@ -70,6 +77,12 @@ class QPLayout:
             row += self.ng[k]
         self.row_con.append(row)
         self.na = row + self.ng[N]
+        self.idx_q = self.off_x[:, None] + np.arange(NQ)
+        """Variable indices of q_k, (N+1, 9); `idx_v` of v_k, `idx_a` (N, 9) of a_k, `idx_s` (N, slacks) of s_k:
+        whole-horizon gathers and scatters in one numpy call, no loop over nodes."""
+        self.idx_v = self.idx_q + NQ
+        self.idx_a = self.off_u[:, None] + np.arange(NQ)
+        self.idx_s = self.off_u[:, None] + NQ + np.arange(self.n_slack)
 
     def q(self, k: int) -> slice:
         return slice(self.off_x[k], self.off_x[k] + NQ)
@@ -85,22 +98,19 @@ class QPLayout:
 
     def states(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(q (N+1,9), v (N+1,9), a (N,9)) of a solution vector."""
-        q = np.array([z[self.q(k)] for k in range(self.N + 1)])
-        v = np.array([z[self.v(k)] for k in range(self.N + 1)])
-        a = np.array([z[self.a(k)] for k in range(self.N)])
-        return q, v, a
+        return z[self.idx_q], z[self.idx_v], z[self.idx_a]
 
     def pack(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
         """The variable vector of a trajectory (slacks zero): the inverse of `states`."""
         z = np.zeros(self.nv)
-        idx = self.off_x[:, None] + np.arange(NQ)
-        z[idx] = q
-        z[idx + NQ] = v
-        z[self.off_u[:, None] + np.arange(NQ)] = a
+        z[self.idx_q] = q
+        z[self.idx_v] = v
+        z[self.idx_a] = a
         return z
 
     def slacks(self, z: np.ndarray) -> np.ndarray:
-        return np.array([z[self.s(k)] for k in range(1, self.N)])
+        """Slacks of nodes 1..N−1, (N−1, slacks)."""
+        return z[self.idx_s[1:]]
 
 
 def _pattern(layout: QPLayout) -> tuple[np.ndarray, np.ndarray]:
@@ -163,7 +173,12 @@ class StructuredQP:
                 "hpipm": dict(HPIPM_OPTIONS), "error_on_fail": False}
         self.solver = ca.conic("htmpc_qp", "hpipm", {"h": self.H_sp, "a": self.A_sp}, opts)
         self._opts = opts
-        self._rescue: ca.Function | None = None
+        self._call_buffer = BufferedFunction(self.solver, rebind=True)
+        self._rescue: BufferedFunction | None = None
+        self.level_templates: dict[tuple, object] = {}
+        """The constant part of a level's data per (parameters, damping), built once by `level_problem`."""
+        self._solver_s: dict[int, float] = {}
+        """casadi's `t_wall_solver` per buffer at its last call (a buffer's statistics accumulate over calls)."""
         self.A_dynamics_nz = self._dynamics_nz()
         self.H_qq = np.stack([self.H_pos[L.q(k), L.q(k)] for k in range(L.N + 1)])
         self.H_vv = np.stack([self.H_pos[L.v(k), L.v(k)] for k in range(L.N + 1)])
@@ -207,39 +222,43 @@ class StructuredQP:
 
     def solve(self, h_nz: np.ndarray, g: np.ndarray, a_nz: np.ndarray, lba: np.ndarray, uba: np.ndarray,
               lbx: np.ndarray, ubx: np.ndarray, guess: np.ndarray | None = None) -> QPSolution:
-        """Solve with H and A given as non-zeros; `guess` (primal) warm-starts HPIPM's interior point.
-
-        (Called with `DM` arguments, not through `Function.buffer()`: with a reused buffer memory and a
-        primal warm start, casadi 3.8's HPIPM interface returned wrong points flagged as successes.)"""
+        """Solve with H and A given as non-zeros; `guess` (primal) warm-starts HPIPM's interior point."""
         t0 = time.perf_counter()
         if not (np.all(np.isfinite(h_nz)) and np.all(np.isfinite(a_nz)) and np.all(np.isfinite(g))):
             return QPSolution(np.full(self.layout.nv, np.nan), False, "non-finite QP data", 0, 0.0)
-        # DM from a list is cheaper than from a numpy array (docs/decisions.md, "Building the QP's data")
-        args = {"h": ca.DM(self.H_sp, h_nz.tolist()), "g": g, "a": ca.DM(self.A_sp, a_nz.tolist()), "lba": lba,
-                "uba": uba, "lbx": lbx, "ubx": ubx}
-        if guess is not None:
-            args["x0"] = guess
-        z, ok, status, iters = self._call(self.solver, args)
+        args = (h_nz, g, a_nz, lba, uba, lbx, ubx, np.zeros(self.layout.nv) if guess is None else guess)
+        z, ok, status, iters, hpipm_ms = self._call(self._call_buffer, args)
         if not ok and status in ("1", "2"):  # stalled: iteration limit or minimum step (`RESCUE_MODE`)
-            z, ok, again, more = self._call(self._rescue_solver(), args)
+            z, ok, again, more, again_ms = self._call(self._rescue_solver(), args)
             status, iters = f"{status}, {RESCUE_MODE} {again}", iters + more
-            return QPSolution(z, ok, status, iters, (time.perf_counter() - t0) * 1e3, rescued=True)
-        return QPSolution(z, ok, status, iters, (time.perf_counter() - t0) * 1e3)
+            return QPSolution(z, ok, status, iters, (time.perf_counter() - t0) * 1e3, rescued=True,
+                              hpipm_ms=hpipm_ms + again_ms)
+        return QPSolution(z, ok, status, iters, (time.perf_counter() - t0) * 1e3, hpipm_ms=hpipm_ms)
 
-    def _rescue_solver(self) -> ca.Function:
+    def _rescue_solver(self) -> BufferedFunction:
         """The same QP in HPIPM's `RESCUE_MODE`, built on first need (tens of ms, rare)."""
         if self._rescue is None:
             opts = dict(self._opts, hpipm=dict(self._opts["hpipm"], mode=RESCUE_MODE))
-            self._rescue = ca.conic("htmpc_qp_rescue", "hpipm", {"h": self.H_sp, "a": self.A_sp}, opts)
+            solver = ca.conic("htmpc_qp_rescue", "hpipm", {"h": self.H_sp, "a": self.A_sp}, opts)
+            self._rescue = BufferedFunction(solver, rebind=True)
         return self._rescue
 
-    def _call(self, solver: ca.Function, args: dict) -> tuple[np.ndarray, bool, str, int]:
-        """One HPIPM call: (z, success, HPIPM's status, iterations)."""
+    def _call(self, solver: BufferedFunction,
+              args: tuple[np.ndarray, ...]) -> tuple[np.ndarray, bool, str, int, float]:
+        """One HPIPM call on (h, g, a, lba, uba, lbx, ubx, x0): (z, success, HPIPM's status, iterations, HPIPM's
+        own ms). The multipliers' warm start (lam_x0, lam_a0) stays zero: `warm_start` 1 uses the primal only."""
+        for buffer, value in zip(solver.inputs, args, strict=False):
+            buffer[:] = value
+        for buffer in solver.inputs[len(args):]:
+            buffer[:] = 0.0
         try:
-            out = solver(**args)
+            solver.evaluate()
         except RuntimeError as err:  # casadi raises on malformed input
-            return np.full(self.layout.nv, np.nan), False, f"solver error: {err}", 0
+            return np.full(self.layout.nv, np.nan), False, f"solver error: {err}", 0, float("nan")
         stats = solver.stats()
-        z = out["x"].full().ravel()
+        z = solver.outputs[0].copy()
         ok = bool(stats.get("success", False)) and bool(np.all(np.isfinite(z)))
-        return z, ok, str(stats.get("return_status", "")), int(stats.get("iter_count", -1))
+        total_s = float(stats.get("t_wall_solver", float("nan")))
+        hpipm_ms = (total_s - self._solver_s.get(id(solver), 0.0)) * 1e3
+        self._solver_s[id(solver)] = total_s
+        return z, ok, str(stats.get("return_status", "")), int(stats.get("iter_count", -1)), hpipm_ms

@@ -1,4 +1,6 @@
-"""Pose-tracking tasks of the HTMPC (eq. 5), mink/pink style: `compute_error` and `compute_jacobian`.
+"""Pose-tracking tasks of the HTMPC (eq. 5), mink/pink style: one `Task` interface, `compute_error(q, kin, ref)`
+and `compute_jacobian(q, kin, ref)` with the same arguments for every task, so the controller treats its levels
+alike (`Task.reference` picks a task's reference out of `References`).
 
 Errors are e = reference − actual (position) and Log(R^T R_d) (orientation), one row per node; the
 Jacobian is de/dq, so the Gauss-Newton model is e(q) ≈ e(q̄) + J (q − q̄).
@@ -12,7 +14,7 @@ import numpy as np
 
 from core.htmpc.horizon_kinematics import HorizonKinematics
 from core.htmpc.so3 import left_jacobian_inverse, log3
-from core.types import BaseReference, EEReference
+from core.types import BaseReference, EEReference, References
 
 
 def _broadcast(a: np.ndarray, n: int) -> np.ndarray:
@@ -30,15 +32,48 @@ class Linearisation:
     weights: np.ndarray
 
 
-class BaseTask:
+class Task:
+    """A task of the hierarchy: its error e(q) over the horizon nodes and de/dq, from the configurations q (K, 9)
+    and their kinematics `kin` (None is enough for a task with `needs_kinematics` False)."""
+
+    name = ""
+    needs_kinematics = True
+    """Whether `compute_error` reads the FK (`kin`); the controller skips evaluating it otherwise."""
+    linear_in_q = False
+    """The error is affine in q, so its Gauss-Newton model, and a QP bound on it, are exact."""
+
+    def __init__(self, weights: tuple[float, ...]) -> None:
+        self.weights = np.asarray(weights, float)
+
+    def reference(self, refs: References) -> BaseReference | EEReference | None:
+        """This task's reference in `refs` (None: the subtask does not use this task)."""
+        raise NotImplementedError
+
+    def compute_error(self, q: np.ndarray, kin: HorizonKinematics | None, ref) -> np.ndarray:
+        """e (K, m) at each node."""
+        raise NotImplementedError
+
+    def compute_jacobian(self, q: np.ndarray, kin: HorizonKinematics | None, ref,
+                         e: np.ndarray | None = None) -> np.ndarray:
+        """de/dq (K, m, 9); `e` (the error at the same q) saves recomputing it where the Jacobian needs it."""
+        raise NotImplementedError
+
+    def linearise(self, q: np.ndarray, kin: HorizonKinematics | None, ref) -> Linearisation:
+        e = self.compute_error(q, kin, ref)
+        return Linearisation(self.name, e, self.compute_jacobian(q, kin, ref, e), self.weights[: e.shape[1]])
+
+
+class BaseTask(Task):
     """Base pose task: e = [x_d − x, y_d − y, wrap(yaw_d − yaw)] (yaw dropped when the reference has none)."""
 
     name = "base"
+    needs_kinematics = False
+    linear_in_q = True
 
-    def __init__(self, weights: tuple[float, float, float]) -> None:
-        self.weights = np.asarray(weights, float)
+    def reference(self, refs: References) -> BaseReference | None:
+        return refs.base
 
-    def compute_error(self, q: np.ndarray, ref: BaseReference) -> np.ndarray:
+    def compute_error(self, q: np.ndarray, kin: HorizonKinematics | None, ref: BaseReference) -> np.ndarray:
         K = q.shape[0]
         xy = _broadcast(ref.xy, K) - q[:, :2]
         if ref.yaw is None:
@@ -46,18 +81,15 @@ class BaseTask:
         dyaw = _broadcast(np.asarray(ref.yaw, float).reshape(-1, 1), K)[:, 0] - q[:, 2]
         return np.column_stack([xy, (dyaw + np.pi) % (2 * np.pi) - np.pi])
 
-    def compute_jacobian(self, q: np.ndarray, ref: BaseReference) -> np.ndarray:
+    def compute_jacobian(self, q: np.ndarray, kin: HorizonKinematics | None, ref: BaseReference,
+                         e: np.ndarray | None = None) -> np.ndarray:
         m = 2 if ref.yaw is None else 3
         J = np.zeros((q.shape[0], m, 9))
         J[:, np.arange(m), np.arange(m)] = -1.0
         return J
 
-    def linearise(self, q: np.ndarray, kin: HorizonKinematics, ref: BaseReference) -> Linearisation:
-        e = self.compute_error(q, ref)
-        return Linearisation(self.name, e, self.compute_jacobian(q, ref), self.weights[: e.shape[1]])
 
-
-class EETask:
+class EETask(Task):
     """End-effector pose task: e = [p_d − p ; Log(R^T R_d)] (orientation dropped without a reference rotation).
 
     d Log(R^T R_d)/dq = −J_l^{-1}(e_r) R^T J_ω, from R(q + dq) ≈ exp([J_ω dq]×) R.
@@ -65,10 +97,10 @@ class EETask:
 
     name = "ee"
 
-    def __init__(self, weights: tuple[float, ...]) -> None:
-        self.weights = np.asarray(weights, float)
+    def reference(self, refs: References) -> EEReference | None:
+        return refs.ee
 
-    def compute_error(self, kin: HorizonKinematics, ref: EEReference) -> np.ndarray:
+    def compute_error(self, q: np.ndarray, kin: HorizonKinematics, ref: EEReference) -> np.ndarray:
         K = kin.p.shape[0]
         ep = _broadcast(ref.position, K) - kin.p
         if ref.rotation is None:
@@ -77,18 +109,15 @@ class EETask:
         er = log3(np.swapaxes(kin.R, -1, -2) @ Rd)
         return np.column_stack([ep, er])
 
-    def compute_jacobian(self, kin: HorizonKinematics, ref: EEReference, e: np.ndarray | None = None) -> np.ndarray:
+    def compute_jacobian(self, q: np.ndarray, kin: HorizonKinematics, ref: EEReference,
+                         e: np.ndarray | None = None) -> np.ndarray:
         Jp = -kin.Jp
         if ref.rotation is None:
             return Jp
         if e is None:
-            e = self.compute_error(kin, ref)
+            e = self.compute_error(q, kin, ref)
         Jr = -left_jacobian_inverse(e[:, 3:]) @ np.swapaxes(kin.R, -1, -2) @ kin.Jw
         return np.concatenate([Jp, Jr], axis=1)
-
-    def linearise(self, q: np.ndarray, kin: HorizonKinematics, ref: EEReference) -> Linearisation:
-        e = self.compute_error(kin, ref)
-        return Linearisation(self.name, e, self.compute_jacobian(kin, ref, e), self.weights[: e.shape[1]])
 
 
 def _yaw_rotations(yaw: np.ndarray) -> np.ndarray:
@@ -98,7 +127,7 @@ def _yaw_rotations(yaw: np.ndarray) -> np.ndarray:
     return R
 
 
-class EEBaseFrameTask:
+class EEBaseFrameTask(EETask):
     """End-effector pose task in the base frame, for a hand held relative to the base while it drives:
     e = [p_d^b − R_ψ^T (p − t) ; Log((R_ψ^T R)^T R_d^b)], with t = (x, y, 0) and R_ψ the base yaw, at every node.
 
@@ -106,11 +135,6 @@ class EEBaseFrameTask:
     the error depends on the arm joints only: d p^b/dq = R_ψ^T (J_p − J_t − [ẑ]×(p − t) e_ψ^T) and the angular
     Jacobian of R_ψ^T R is R_ψ^T (J_ω − ẑ e_ψ^T) (both vanish in x, y, ψ).
     """
-
-    name = "ee"
-
-    def __init__(self, weights: tuple[float, ...]) -> None:
-        self.weights = np.asarray(weights, float)
 
     @staticmethod
     def _in_base(q: np.ndarray, kin: HorizonKinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -147,7 +171,3 @@ class EEBaseFrameTask:
         Jw[:, 2, 2] -= 1.0
         Jr = -left_jacobian_inverse(e[:, 3:]) @ np.swapaxes(Rb_ee, -1, -2) @ RbT @ Jw
         return np.concatenate([Jp, Jr], axis=1)
-
-    def linearise(self, q: np.ndarray, kin: HorizonKinematics, ref: EEReference) -> Linearisation:
-        e = self.compute_error(q, kin, ref)
-        return Linearisation(self.name, e, self.compute_jacobian(q, kin, ref, e), self.weights[: e.shape[1]])

@@ -65,3 +65,37 @@ def test_hpipm_matches_a_dense_solver_and_respects_the_dynamics(robot):
     # the first interval's rows: a_a · a_0 + s_0 ≥ lb with the slack of each row's group
     s0 = sol.z[layout.s(0)][layout.slack_group]
     assert np.all(step.a_a @ a[0] + s0 >= step.lb - 1e-6)
+
+
+def test_the_buffered_call_solves_each_new_qp_like_a_fresh_dm_call(robot):
+    """The solver runs through a re-bound `Function.buffer()`; without the re-binding every call after the first
+    solved stale data. A sequence of different QPs (and a warm start) must give what a plain `DM` call gives."""
+    from core.htmpc.collision_constraint import CollisionRows, StepRows
+
+    params = HTMPCParams(N=5)
+    n = params.N
+    layout = QPLayout(n, n_spheres=3, n_lex=0, slack_group=np.array([0, 0, 1]))
+    qp = StructuredQP(layout, params.dt_s)
+    lim = robot.limits
+    guess = None
+    for seed in range(4):
+        rng = np.random.default_rng(seed)
+        rows = CollisionRows(a_q=rng.normal(size=(n, 3, 9)), a_v=rng.normal(size=(n, 3, 9)),
+                             lb=rng.uniform(-1, 0.5, size=(n, 3)), h=np.zeros((n, 3)))
+        step = StepRows(a_a=rng.normal(size=(3, 9)), lb=rng.uniform(-1, 0.5, size=3), h=np.zeros(3))
+        q_bar = np.tile(rng.normal(size=9) * 0.1, (n + 1, 1))
+        arrays = base_arrays(qp, params, q_bar, rows, step=step)
+        lin = Linearisation("base", e0=rng.normal(size=(n + 1, 3)), J=np.tile(-np.eye(3, 9), (n + 1, 1, 1)),
+                            weights=np.ones(3))
+        task_cost(arrays, qp, lin, q_bar, params)
+        x0 = np.concatenate([q_bar[0], rng.normal(size=9) * 0.1])
+        lbx, ubx = variable_bounds(layout, x0, lim.q_min, lim.q_max, lim.v_max, lim.a_max, params.dt_s)
+        sol = qp.solve(arrays.h, arrays.g, arrays.a, arrays.lba, arrays.uba, lbx, ubx, guess)
+        args = {"h": ca.DM(qp.H_sp, arrays.h), "g": arrays.g, "a": ca.DM(qp.A_sp, arrays.a), "lba": arrays.lba,
+                "uba": arrays.uba, "lbx": lbx, "ubx": ubx}
+        if guess is not None:
+            args["x0"] = guess
+        plain = np.asarray(qp.solver(**args)["x"]).ravel()
+        assert sol.success, sol.status
+        np.testing.assert_allclose(sol.z, plain, rtol=0, atol=1e-12)
+        guess = sol.z

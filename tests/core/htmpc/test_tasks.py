@@ -5,7 +5,7 @@ import pinocchio as pin
 
 from core.htmpc.horizon_kinematics import HorizonKinematicsEvaluator
 from core.htmpc.tasks import BaseTask, EEBaseFrameTask, EETask
-from core.types import BaseReference, EEReference
+from core.types import BaseReference, EEReference, References
 
 
 def test_base_error_hand_computed():
@@ -13,12 +13,12 @@ def test_base_error_hand_computed():
     q = np.zeros((2, 9))
     q[1, :3] = [1.0, 2.0, 3.0]
     ref = BaseReference(xy=np.array([[2.0, 0.0]]), yaw=np.array([-3.0]))
-    e = task.compute_error(q, ref)
+    e = task.compute_error(q, None, ref)
     np.testing.assert_allclose(e[0], [2.0, 0.0, -3.0])
     np.testing.assert_allclose(e[1], [1.0, -2.0, -6.0 + 2 * np.pi])  # −6 rad wrapped into (−π, π]
-    J = task.compute_jacobian(q, ref)
+    J = task.compute_jacobian(q, None, ref)
     np.testing.assert_allclose(J[0, :, :3], -np.eye(3))
-    assert task.compute_error(q, BaseReference(xy=np.array([[2.0, 0.0]]))).shape == (2, 2)
+    assert task.compute_error(q, None, BaseReference(xy=np.array([[2.0, 0.0]]))).shape == (2, 2)
 
 
 def test_ee_error_uses_exact_log(robot):
@@ -27,7 +27,7 @@ def test_ee_error_uses_exact_log(robot):
     kin = HorizonKinematicsEvaluator(robot, 4)(q)
     Rd = pin.utils.rpyToMatrix(0.3, -1.0, 2.5)
     pd = np.array([1.0, -0.5, 0.8])
-    e = EETask((1,) * 6).compute_error(kin, EEReference(pd[None], Rd[None]))
+    e = EETask((1,) * 6).compute_error(q, kin, EEReference(pd[None], Rd[None]))
     for k in range(4):
         T = robot.ee_pose(q[k])
         np.testing.assert_allclose(e[k, :3], pd - T[:3, 3], atol=1e-12)
@@ -40,12 +40,13 @@ def test_ee_jacobian_matches_finite_differences(robot):
     task = EETask((1,) * 6)
     ev = HorizonKinematicsEvaluator(robot, 1)
     ref = EEReference(np.array([[0.9, 0.2, 1.0]]), pin.utils.rpyToMatrix(0.1, 0.4, -0.7)[None])
-    J = task.compute_jacobian(ev(q0[None]), ref)[0]
+    J = task.compute_jacobian(q0[None], ev(q0[None]), ref)[0]
     eps = 1e-6
     for j in range(9):
         dq = np.zeros(9)
         dq[j] = eps
-        plus, minus = task.compute_error(ev((q0 + dq)[None]), ref)[0], task.compute_error(ev((q0 - dq)[None]), ref)[0]
+        plus = task.compute_error((q0 + dq)[None], ev((q0 + dq)[None]), ref)[0]
+        minus = task.compute_error((q0 - dq)[None], ev((q0 - dq)[None]), ref)[0]
         fd = (plus - minus) / (2 * eps)
         np.testing.assert_allclose(J[:, j], fd, atol=1e-6)
 
@@ -84,3 +85,24 @@ def test_base_frame_ee_jacobian_matches_finite_differences(robot):
             minus = task.compute_error((q0 - dq)[None], ev((q0 - dq)[None]), ref)[0]
             np.testing.assert_allclose(J[:, j], (plus - minus) / (2 * eps), atol=1e-6)
         np.testing.assert_allclose(J[:, :3], 0.0, atol=1e-9)  # the base's own joints do not move it
+
+
+def test_every_task_takes_the_same_arguments_and_picks_its_own_reference(robot):
+    """One interface: the controller calls compute_error / compute_jacobian / linearise alike on every level."""
+    rng = np.random.default_rng(5)
+    q = np.array([robot.random_q(rng) for _ in range(3)])
+    kin = HorizonKinematicsEvaluator(robot, 3)(q)
+    base = BaseReference(xy=np.array([[1.0, -1.0]]), yaw=np.array([0.3]))
+    world = EEReference(np.array([[0.8, 0.1, 1.0]]), np.eye(3)[None])
+    in_base = EEReference(np.array([[0.5, 0.0, 0.9]]), np.eye(3)[None], frame="base")
+    cases = ((BaseTask((1.0,) * 3), base), (EETask((1.0,) * 6), world), (EEBaseFrameTask((1.0,) * 6), in_base))
+    for task, ref in cases:
+        refs = References(order=("base", "ee"), base=base, ee=ref if task.name == "ee" else None)
+        assert task.reference(refs) is ref
+        e = task.compute_error(q, kin, ref)
+        J = task.compute_jacobian(q, kin, ref)
+        lin = task.linearise(q, kin, ref)
+        np.testing.assert_array_equal(lin.e0, e)
+        np.testing.assert_array_equal(lin.J, J)
+        assert J.shape == (3, e.shape[1], 9) and lin.weights.shape == (e.shape[1],)
+    assert BaseTask((1.0,) * 3).compute_error(q, None, base).shape == (3, 3)  # the base task needs no FK
