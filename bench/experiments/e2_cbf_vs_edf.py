@@ -76,10 +76,11 @@ def trial(params: dict) -> dict:
         BaseSubtask(name="to the goal", target=BasePose(x=scene.goal[0], y=scene.goal[1], yaw_deg=0.0),
                     timeout_s=TIMEOUT_S)])
     perception_s, actuation_s = DELAYS_S.get(params["map"], (0.0, 0.0))
-    cfg = runtime_config(map_kind=MAP_KIND[params["map"]], constraint=params["constraint"], seed=params["seed"],
+    cfg = runtime_config(map_kind=MAP_KIND[params["map"]], seed=params["seed"],
                          perception_delay_s=perception_s, actuation_delay_s=actuation_s,
                          mapping=MAPPING.get(params["map"], tunables().mapping),
-                         htmpc=replace(tunables().htmpc, gamma=params["gamma"]),
+                         htmpc=replace(tunables().htmpc, constraint=params["constraint"],
+                                       gamma=params["gamma"]),
                          sequencer=replace(tunables().sequencer, nominal_speed_mps=params["speed"],
                                            inflation_m=tunables().robot.footprint_radius_m))
     rt = Runtime(cfg, scene=scene, sequence=seq)

@@ -79,9 +79,10 @@ PAPER = {"ee_min_avoided_m": 0.6, "base_min_avoided_m": 1.48, "bound_m": 0.5, "c
 
 def _config(map_kind: str, seed: int):
     perception, actuation = DELAYS[map_kind]
-    return runtime_config(map_kind=map_kind, constraint="cbf", seed=seed, perception_delay_s=perception,
+    return runtime_config(map_kind=map_kind, seed=seed, perception_delay_s=perception,
                           actuation_delay_s=actuation,
-                          htmpc=replace(tunables().htmpc, gamma=GAMMA, delta_safe_m=DELTA_M),
+                          htmpc=replace(tunables().htmpc, constraint="cbf", gamma=GAMMA,
+                                        delta_safe_m=DELTA_M),
                           sequencer=replace(tunables().sequencer, nominal_speed_mps=SPEED_MPS,
                                             inflation_m=tunables().robot.footprint_radius_m))
 

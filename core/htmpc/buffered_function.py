@@ -46,10 +46,11 @@ class BufferedFunction:
         self._buffer, self._trigger = fn.buffer()
         self.inputs = [np.zeros(fn.nnz_in(i)) for i in range(fn.n_in())]
         self.outputs = [np.zeros(fn.nnz_out(i)) for i in range(fn.n_out())]
+        # casadi's SWIG signatures also list the buffer's size, which its typemap takes from the memoryview
         for i, a in enumerate(self.inputs):
-            self._buffer.set_arg(i, memoryview(a))
+            self._buffer.set_arg(i, memoryview(a))  # pyright: ignore[reportCallIssue, reportArgumentType]
         for i, a in enumerate(self.outputs):
-            self._buffer.set_res(i, memoryview(a))
+            self._buffer.set_res(i, memoryview(a))  # pyright: ignore[reportCallIssue, reportArgumentType]
 
     def evaluate(self) -> int:
         """Run the function on the current inputs; returns casadi's return flag (0 = fine)."""

@@ -63,6 +63,7 @@ from __future__ import annotations
 
 import logging
 import time
+import typing
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -78,9 +79,9 @@ from core.mapping.segmentation import Segment, segment, voxelise
 from core.mapping.tracked_object import TrackedObject
 from core.mapping.visibility import HIT, THROUGH, FrameView, VisibilityCounts, count
 from core.mapping.world_map import TIMING_KEYS
-from core.params import MappingParams
+from core.params import EDFGeometry, MappingParams
 from core.robot.model import RobotModel
-from core.types import DepthFrame, LocalEDF, ObjectMapSnapshot, ObjectStatus, Observation, Posterior
+from core.types import DepthFrame, LocalEDF, ObjectMapSnapshot, ObjectStatus, Observation
 
 log = logging.getLogger(__name__)
 
@@ -145,9 +146,8 @@ class Association:
         out = []
         for oid, parts in shares.items():
             obj = owners[oid]
-            if len(parts) == 1 and parts[0][1] is not None:
-                points, sample, distances = parts[0]
-            else:
+            points, sample, distances = parts[0]
+            if len(parts) > 1 or sample is None or distances is None:
                 points = np.concatenate([pts for pts, _, _ in parts])
                 sample = points[::max(1, -(-len(points) // n_sample))]
                 distances = obj.distance(sample, cap_m)
@@ -155,7 +155,7 @@ class Association:
         return out
 
 
-EDF_GEOMETRIES = ("completed", "surface")
+EDF_GEOMETRIES: tuple[str, ...] = typing.get_args(EDFGeometry)
 """`MappingParams.edf_geometry`: solid boxes completed where unseen, or the observed surfaces alone (9a)."""
 EDF_PAD_M = 0.5
 """The EDT runs on the window grown by this, so objects just outside still shape the field near its edge."""
@@ -278,7 +278,7 @@ class ObjectMapper:
         owner = dict(association.assign(C, p.association_gate_m).pairs)
         out = Association()
         for j, seg in enumerate(segments):
-            explainers = [int(i) for i in np.nonzero(candidates[j])[0]
+            explainers = [i for i in map(int, np.nonzero(candidates[j])[0])
                           if association.explained_fraction(distances[j, i], p.explain_m) >= p.split_fraction]
             primary = owner.get(j)
             if not [i for i in explainers if i != primary]:
@@ -329,15 +329,17 @@ class ObjectMapper:
         """Move the object when its observation sits off its surface and ICP explains that by a motion."""
         p = self.params
         obj = seen.obj
-        if np.mean(seen.distances > p.registration_trigger_m) < 0.2 or not self._movable(obj):
+        off_surface = np.mean(seen.distances > p.registration_trigger_m)
+        if off_surface < p.registration_trigger_fraction or not self._movable(obj):
             return
         result = align(seen.sample, obj.world_points, p.icp_max_correspondence_m, p.icp_max_iterations,
-                       normal_radius_m=2.5 * p.voxel_m)
+                       normal_radius_m=p.icp_normal_radius_voxels * p.voxel_m)
         moved = seen.sample @ result.T[:3, :3].T + result.T[:3, 3]
         after_d = obj.distance(moved, p.association_cap_m)
         before = association.truncated_mean_distance(seen.distances, p.association_cap_m)
         after = association.truncated_mean_distance(after_d, p.association_cap_m)
-        if after < 0.7 * before and before - after > 0.5 * p.voxel_m:
+        gain_m = p.registration_min_gain_voxels * p.voxel_m
+        if after < p.registration_accept_ratio * before and before - after > gain_m:
             obj.move(np.linalg.inv(result.T))
             seen.distances = obj.distance(seen.sample, p.association_cap_m)
             log.debug("object %d moved by %s (cost %.3f → %.3f m)", obj.id, np.round(-result.T[:3, 3], 3),
@@ -449,7 +451,7 @@ class ObjectMapper:
 
     def _create(self, points: np.ndarray) -> TrackedObject:
         p = self.params
-        prior = Posterior(mu=p.mu0_m, sigma=p.sigma0_m, alpha=p.alpha0, beta=p.beta0)
+        prior = p.prior()
         obj = TrackedObject(self._next_id, points, p.voxel_m, prior, floor_snap_m=p.floor_snap_m,
                             box_fill_max_m=p.box_fill_max_m,
                             completion=Completion(p.edf_voxel_m, p.assumed_depth_m, p.carve_after_misses))

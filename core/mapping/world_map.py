@@ -20,7 +20,10 @@ TIMING_KEYS: tuple[str, ...] = ("points", "segmentation", "association", "regist
 class WorldMap(Protocol):
     """A map built from depth frames that the controller sees through a signed `LocalEDF`."""
 
-    timings_ms: dict[str, float]
+    @property
+    def timings_ms(self) -> dict[str, float]:
+        """Milliseconds of the stages of the latest integration, by stage name."""
+        ...
 
     def integrate(self, obs: Observation) -> None:
         """Fuse every depth frame of `obs`; `obs.state` gives the robot's pose for the self-filter."""

@@ -6,14 +6,14 @@ import numpy as np
 from core.mapping.association import assign
 from core.mapping.object_mapper import Association
 from core.mapping.tracked_object import TrackedObject
-from core.types import Posterior
+from core.params import MappingParams
 
 
 def _slab(object_id: int, x0: float, x1: float) -> TrackedObject:
     """An object whose surface is a vertical face from x0 to x1 at y = 0 (5 cm points)."""
     x, z = np.meshgrid(np.arange(x0, x1, 0.05), np.arange(0.05, 0.5, 0.05), indexing="ij")
     points = np.column_stack([x.ravel(), np.zeros(x.size), z.ravel()])
-    return TrackedObject(object_id, points, 0.05, Posterior(), floor_snap_m=10.0)
+    return TrackedObject(object_id, points, 0.05, MappingParams().prior(), floor_snap_m=10.0)
 
 
 def test_chained_merges_end_in_the_surviving_object():
