@@ -4,7 +4,7 @@ the observations of the objects merged into it; the Hungarian assignment keeps o
 import numpy as np
 
 from core.mapping.association import assign
-from core.mapping.object_mapper import Association
+from core.mapping.frame_association import FrameAssociation
 from core.mapping.tracked_object import TrackedObject
 from core.params import MappingParams
 
@@ -18,7 +18,7 @@ def _slab(object_id: int, x0: float, x1: float) -> TrackedObject:
 
 def test_chained_merges_end_in_the_surviving_object():
     big, middle, small = _slab(1, 0.0, 2.0), _slab(2, 1.5, 2.5), _slab(3, 2.2, 2.4)
-    out = Association()
+    out = FrameAssociation()
     seen = np.array([[2.3, 0.0, 0.2], [2.25, 0.0, 0.3]])
     out.add(small, seen)
     out.add(middle, seen + [0.1, 0.0, 0.0])
