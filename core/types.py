@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import StrEnum
-from typing import Protocol, runtime_checkable
+from typing import Protocol
 
 import numpy as np
 
@@ -275,7 +275,6 @@ class Plan:
         return self.v[k] + self.u[k] * (tau - k * self.dt)
 
 
-@runtime_checkable
 class RobotBackend(Protocol):
     """A robot the runtime drives: the MuJoCo simulation or a real robot behind the bridge."""
 

@@ -6,7 +6,7 @@ different threads but never concurrently (it holds a lock).
 
 from __future__ import annotations
 
-from typing import Protocol, runtime_checkable
+from typing import Protocol
 
 import numpy as np
 
@@ -16,7 +16,6 @@ TIMING_KEYS: tuple[str, ...] = ("points", "segmentation", "association", "regist
 """Stages reported in `timings_ms` (ms of the last `integrate`; 'edf' of the last `local_edf`)."""
 
 
-@runtime_checkable
 class WorldMap(Protocol):
     """A map built from depth frames that the controller sees through a signed `LocalEDF`."""
 
