@@ -24,6 +24,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -47,6 +48,9 @@ from core.types import NQ, DepthFrame, LocalEDF, Plan, RobotBackend, RobotState
 from tasks.schema import TaskSequence
 from tasks.sequence_file import load_sequence
 from tasks.sequencer import Sequencer
+
+if TYPE_CHECKING:
+    from core.htmpc import HTMPC
 
 __all__ = ["CONSTRAINT_KINDS", "DEFAULT_SCENE", "DEFAULT_SEQUENCE", "MAP_KINDS", "ROOT", "FaultError", "Runtime",
            "RuntimeConfig"]
@@ -155,7 +159,7 @@ class Runtime:
         return self._loop.map
 
     @property
-    def controller(self):
+    def controller(self) -> HTMPC:
         return self._loop.controller
 
     @property
