@@ -16,8 +16,12 @@ import sys
 import threading
 from dataclasses import asdict as dt_asdict
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from app.runtime import CONSTRAINT_KINDS, DEFAULT_SCENE, DEFAULT_SEQUENCE, MAP_KINDS, ROOT
+from app.runtime import CONSTRAINT_KINDS, DEFAULT_SCENE, DEFAULT_SEQUENCE, MAP_KINDS, ROOT, RuntimeConfig
+
+if TYPE_CHECKING:
+    from app.recording import Recorder
 
 EXIT_FAULT = 3
 """`run --headless`: the run faulted (the robot braked to rest; the reason is the last line on stderr)."""
@@ -81,16 +85,15 @@ def _scene_for(args) -> Path:
     return DEFAULT_SCENE
 
 
-def _recorder(args):
+def _recorder(args) -> Recorder | None:
     """The MCAP recorder that --record asks for, else None."""
     if not args.record:
         return None
     from app.recording import Recorder
 
     return Recorder(args.record, depth_frames=args.record_depth)
-def _config(args, **extra):
+def _config(args, **extra) -> RuntimeConfig:
     """The runtime's configuration: scene, sequence, map, constraint and the tunables of --params."""
-    from app.runtime import RuntimeConfig
     from core.params_file import Tunables, load_params
 
     tunables = load_params(args.params) if args.params else Tunables()

@@ -20,6 +20,7 @@ from app.recording import read_recording
 from app.snapshot import Snapshot
 from core.params import MappingParams
 from core.robot.model import RobotModel
+from core.types import RobotState
 from tasks.schema import TaskSequence
 
 
@@ -66,7 +67,7 @@ class ReplaySource:
         self._thread = threading.Thread(target=self._loop, name="replay", daemon=True)
 
     @property
-    def state(self):
+    def state(self) -> RobotState:
         return self.snapshots[self.index].state
 
     @property
