@@ -16,8 +16,12 @@ import sys
 import threading
 from dataclasses import asdict as dt_asdict
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from app.runtime import DEFAULT_SCENE, DEFAULT_SEQUENCE, MAP_KINDS, ROOT
+from app.runtime import CONSTRAINT_KINDS, DEFAULT_SCENE, DEFAULT_SEQUENCE, MAP_KINDS, ROOT, RuntimeConfig
+
+if TYPE_CHECKING:
+    from app.recording import Recorder
 
 EXIT_FAULT = 3
 """`run --headless`: the run faulted (the robot braked to rest; the reason is the last line on stderr)."""
@@ -28,7 +32,7 @@ def _common(parser: argparse.ArgumentParser) -> None:
                         help="scene YAML (default: the sequence's scene, else core/sim/scenes/default.yaml)")
     parser.add_argument("--sequence", type=Path, default=DEFAULT_SEQUENCE, help="task sequence YAML")
     parser.add_argument("--map", dest="map_kind", choices=MAP_KINDS, default="object", help="map the controller uses")
-    parser.add_argument("--constraint", choices=("cbf", "edf"), default=None,
+    parser.add_argument("--constraint", choices=CONSTRAINT_KINDS, default=None,
                         help="collision constraint kind (default: the --params file's, else cbf)")
     parser.add_argument("--params", type=Path, default=None, metavar="FILE.yaml",
                         help="tunables overriding core/params.py, by section (htmpc: {gamma: 0.5}, ...)")
@@ -81,22 +85,20 @@ def _scene_for(args) -> Path:
     return DEFAULT_SCENE
 
 
-def _recorder(args):
+def _recorder(args) -> Recorder | None:
     """The MCAP recorder that --record asks for, else None."""
     if not args.record:
         return None
     from app.recording import Recorder
 
     return Recorder(args.record, depth_frames=args.record_depth)
-def _config(args, **extra):
+def _config(args, **extra) -> RuntimeConfig:
     """The runtime's configuration: scene, sequence, map, constraint and the tunables of --params."""
-    from app.runtime import RuntimeConfig
     from core.params_file import Tunables, load_params
 
     tunables = load_params(args.params) if args.params else Tunables()
-    constraint = args.constraint or tunables.htmpc.constraint
-    return RuntimeConfig(scene=_scene_for(args), sequence=args.sequence, map_kind=args.map_kind, constraint=constraint,
-                         **tunables.sections(), **extra)
+    config = RuntimeConfig(scene=_scene_for(args), sequence=args.sequence, **tunables.sections(), **extra)
+    return config.configured(map_kind=args.map_kind, constraint=args.constraint)
 
 
 def _check_targets(runtime, args) -> None:
@@ -187,7 +189,7 @@ def run_headless(args) -> int:
             "status": runtime.status_line(), "subtasks_done": sum(p.outcome.value == "done"
                                                                    for p in runtime.sequencer.progress),
             "fault": runtime.fault}
-    summary = write_report(out, runtime.log, runtime.world.obstacles(), meta, runtime.problems)
+    summary = write_report(out, runtime.log, runtime.require_world().obstacles(), meta, runtime.problems)
     print(f"{runtime.run_state.value}: {runtime.status_line()}")
     print(f"problems: {summary_line(runtime.problems.counts())}")
     for key, value in summary.items():

@@ -45,6 +45,7 @@ from typing import TYPE_CHECKING, TypeVar
 import numpy as np
 
 from app.components import make_controller, make_map
+from app.map_kind import MapKind
 from app.map_process import MapProcess, MapProcessError
 from app.problems import ProblemKind, ProblemLog
 from app.run_log import RunLog
@@ -52,7 +53,7 @@ from app.snapshot import RunState
 from core.htmpc.safety import brake_along, braking_plan
 from core.mapping.frame_exposure import at_exposure
 from core.mapping.world_map import WorldMap
-from core.params import SensorParams
+from core.params import ConstraintKind, SensorParams
 from core.robot.model import RobotModel
 from core.robot.state_history import StateHistory
 from core.sim.sim_robot import SimRobot
@@ -67,7 +68,7 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
-PROCESS_MAP_KINDS = ("object", "voxel")
+PROCESS_MAP_KINDS: tuple[MapKind, ...] = ("object", "voxel")
 """Maps that live mode runs in their own process (the ground-truth map reads the simulation in this one)."""
 MAP_PATIENCE_S = 1.0
 """Stopping: how long to wait for a map call in flight before cutting its process short."""
@@ -117,10 +118,9 @@ class ClosedLoop:
         self.lock = threading.RLock()
         self.map_lock = threading.Lock()
         self.frames_ready = threading.Condition()
-        htmpc = replace(config.htmpc, constraint=config.constraint)
         self._match_sensing()
         self.map: WorldMap = make_map(config.map_kind, robot, world, config.mapping)
-        self.controller: HTMPC = make_controller(robot, htmpc)
+        self.controller: HTMPC = make_controller(robot, config.htmpc)
         self.sequencer = self._sequencer(sequence)
         self.view = SequenceView.of(self.sequencer)
         self.run_state = RunState.IDLE
@@ -228,12 +228,11 @@ class ClosedLoop:
                 self.sequencer = self._sequencer(sequence)
                 self.view = SequenceView.of(self.sequencer)
 
-    def configure(self, map_kind: str | None, constraint: str | None) -> None:
+    def configure(self, map_kind: MapKind | None, constraint: ConstraintKind | None) -> None:
         """Swap the map (empty) and/or the controller; takes effect at the next control step."""
         with self.step_lock:
             with self.lock:
-                self.config = replace(self.config, map_kind=map_kind or self.config.map_kind,
-                                      constraint=constraint or self.config.constraint)
+                self.config = self.config.configured(map_kind or None, constraint or None)
             if map_kind:
                 self._match_sensing()
                 new_map = make_map(self.config.map_kind, self.robot, self.world, self.config.mapping)
@@ -242,7 +241,7 @@ class ClosedLoop:
                 if isinstance(old, MapProcess):
                     self.isolate_map(old)  # the new map runs in the same worker
             if constraint:
-                controller = make_controller(self.robot, replace(self.config.htmpc, constraint=constraint))
+                controller = make_controller(self.robot, self.config.htmpc)
                 controller.enforce_timeout = self.controller.enforce_timeout
                 with self.lock:
                     self.controller = controller

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from app.map_kind import MapKind
 from core.mapping.world_map import WorldMap
 from core.params import HTMPCParams, MappingParams
 from core.robot.model import RobotModel
@@ -13,7 +14,7 @@ if TYPE_CHECKING:
     from core.htmpc import HTMPC
 
 
-def make_map(kind: str, robot: RobotModel, world: SimWorld | None, params: MappingParams) -> WorldMap:
+def make_map(kind: MapKind, robot: RobotModel, world: SimWorld | None, params: MappingParams) -> WorldMap:
     """A map of `kind`: 'object' (POCD), 'voxel' (static-world baseline) or 'ground_truth' (simulation only)."""
     if kind == "ground_truth":
         if world is None:

@@ -67,7 +67,7 @@ class SupervisedLoop:
     never catching up in a burst), else back to back (the tick waits on its own). An exception in a tick
     goes to `on_fault` and the loop goes on; anything that ends the thread goes to `on_fault` too."""
 
-    def __init__(self, name: str, tick: Callable[[], None], on_fault: Callable[[str], None],
+    def __init__(self, name: str, tick: Callable[[], object], on_fault: Callable[[str], None],
                  period_s: Callable[[], float] | None = None, on_exit: Callable[[], None] | None = None,
                  niceness: int | None = None) -> None:
         self.name, self.tick, self.on_fault = name, tick, on_fault
@@ -171,7 +171,8 @@ class LiveLoops:
         for loop in [*self.loops, self.watchdog]:
             loop.niceness = niceness if boosted else None
         if self.loop.config.map_process:
-            self.loop.isolate_map(map_process, (niceness if boosted else thread_niceness()) + NICENESS)
+            self.loop.isolate_map(map_process, (niceness if niceness is not None and boosted else thread_niceness())
+                                  + NICENESS)
         elif map_process is not None:
             map_process.close(keep=False)
         for loop in [*self.loops, self.watchdog]:
@@ -205,8 +206,9 @@ class LiveLoops:
         return self.command_period_s / max(self._speed(), 1.0)
 
     def _physics_tick(self) -> None:
-        if self.loop.take_physics_step(PHYSICS_STEP_S):
-            self.loop.backend.step(PHYSICS_STEP_S)
+        backend = self.loop.backend
+        if isinstance(backend, SimRobot) and self.loop.take_physics_step(PHYSICS_STEP_S):
+            backend.step(PHYSICS_STEP_S)
 
     def _io_tick(self) -> None:
         dt_robot = self._io_period() * self._speed()

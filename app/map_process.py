@@ -181,13 +181,19 @@ class MapProcess:
 
     def snapshot(self) -> ObjectMapSnapshot:
         with self._pipe if self._local is not None else contextlib.nullcontext():
-            local, latest = self._local, self._latest
-            return local.snapshot() if local is not None else latest.snapshot
+            local = self._local
+            return local.snapshot() if local is not None else self._handed_back().snapshot
 
     def occupied_points(self) -> np.ndarray:
         with self._pipe if self._local is not None else contextlib.nullcontext():
-            local, latest = self._local, self._latest
-            return local.occupied_points() if local is not None else latest.occupied
+            local = self._local
+            return local.occupied_points() if local is not None else self._handed_back().occupied
+
+    def _handed_back(self) -> _Latest:
+        """What the worker last handed back (there is always something once the map is in the worker)."""
+        if self._latest is None:
+            raise MapProcessError("the mapping process has handed nothing back yet")
+        return self._latest
 
     def local_edf(self, centre_xy: np.ndarray) -> LocalEDF:
         """The field of the latest integration when it was centred within `recentre_m` of `centre_xy`

@@ -202,7 +202,7 @@ class Recording(Sequence[Snapshot]):
     def __len__(self) -> int:
         return len(self.snapshots)
 
-    def __getitem__(self, index):
+    def __getitem__(self, index: int) -> Snapshot:
         return self.snapshots[index]
 
     def __iter__(self) -> Iterator[Snapshot]:

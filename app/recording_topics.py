@@ -129,11 +129,17 @@ def _list(a: Any, decimals: int = 5) -> list | None:
     a = np.round(np.asarray(a, dtype=float), decimals)
     if np.isfinite(a).all():
         return a.tolist()
-    return np.where(np.isfinite(a), a, None).tolist()
+    out = a.astype(object)
+    out[~np.isfinite(a)] = None
+    return out.tolist()
 
 
-def _np(x: Any) -> np.ndarray | None:
-    return None if x is None else np.array(x, dtype=float)  # None entries → NaN
+def _np(x: Any) -> np.ndarray:
+    return np.array(x, dtype=float)  # None entries → NaN
+
+
+def _np_or_none(x: Any) -> np.ndarray | None:
+    return None if x is None else _np(x)
 
 
 def _nan(x: float | None) -> float:
@@ -258,7 +264,7 @@ def snapshot_from_messages(messages: dict[str, dict]) -> Snapshot:
         boxes=tuple(Box(b["id"], tuple(b["position"]), tuple(b["size"]), b["yaw"])
                     for b in messages.get("/scene/boxes", {}).get("boxes", [])),
         plan=_plan(messages["/plan"]) if "/plan" in messages else None,
-        base_path=_np(progress.get("base_path")),
+        base_path=_np_or_none(progress.get("base_path")),
         object_map=_object_map(messages["/map/objects"]) if "/map/objects" in messages else None,
         map_points=_np(messages["/map/points"]["points"]) if "/map/points" in messages else None,
         clouds=_np(messages["/camera/clouds"]["points"]) if "/camera/clouds" in messages else None,

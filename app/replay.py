@@ -10,14 +10,17 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
 
 from app.recording import read_recording
 from app.snapshot import Snapshot
+from core.params import MappingParams
 from core.robot.model import RobotModel
+from core.types import RobotState
 from tasks.schema import TaskSequence
 
 
@@ -26,6 +29,8 @@ class _ReplayConfig:
     speed: float = 1.0
     map_kind: str = "replay"
     constraint: str = "replay"
+    mapping: MappingParams = field(default_factory=MappingParams)
+    """A recording does not carry the tunables: the view draws with the defaults."""
 
 
 def _latest_with(snapshots: list[Snapshot], field: str) -> list[int]:
@@ -62,7 +67,7 @@ class ReplaySource:
         self._thread = threading.Thread(target=self._loop, name="replay", daemon=True)
 
     @property
-    def state(self):
+    def state(self) -> RobotState:
         return self.snapshots[self.index].state
 
     @property
@@ -168,7 +173,7 @@ class ReplaySource:
             raise ValueError(f"replay speed must be within 0.05–50, got {speed}")
         self.config = replace(self.config, speed=float(speed))
 
-    def _refuse(self, *_, **__) -> None:
+    def _refuse(self, *_, **__) -> NoReturn:
         raise RuntimeError("this is a replay: scene, sequence and map edits need a live run")
 
     configure = set_sequence = add_box = move_box = remove_box = randomise_scene = scene = _refuse

@@ -19,16 +19,19 @@ from __future__ import annotations
 
 import logging
 import threading
+import typing
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported)
 from app.closed_loop import MOVING_STATES, ClosedLoop, FaultError
 from app.live_loops import LiveLoops
+from app.map_kind import MAP_KINDS, MapKind
 from app.map_process import MapProcess
 from app.native_memory import limit_arenas, release_free_memory
 from app.problems import ProblemLog
@@ -36,7 +39,7 @@ from app.run_log import RunLog
 from app.snapshot import RunState, Snapshot
 from app.snapshot_builder import build_snapshot, status_line
 from core.mapping.world_map import WorldMap
-from core.params import HTMPCParams, MappingParams, RobotParams, SequencerParams, SimParams
+from core.params import ConstraintKind, HTMPCParams, MappingParams, RobotParams, SequencerParams, SimParams
 from core.robot.model import RobotModel
 from core.sim.scene import Box, Scene, load_scene, random_scene
 from core.sim.sim_robot import SimRobot
@@ -46,14 +49,18 @@ from tasks.schema import TaskSequence
 from tasks.sequence_file import load_sequence
 from tasks.sequencer import Sequencer
 
-__all__ = ["DEFAULT_SCENE", "DEFAULT_SEQUENCE", "MAP_KINDS", "ROOT", "FaultError", "Runtime", "RuntimeConfig"]
+if TYPE_CHECKING:
+    from core.htmpc import HTMPC
+
+__all__ = ["CONSTRAINT_KINDS", "DEFAULT_SCENE", "DEFAULT_SEQUENCE", "MAP_KINDS", "ROOT", "FaultError", "Runtime",
+           "RuntimeConfig"]
 
 log = logging.getLogger(__name__)
 
 ROOT = Path(__file__).parents[1]
 DEFAULT_SCENE = ROOT / "core" / "sim" / "scenes" / "default.yaml"
 DEFAULT_SEQUENCE = ROOT / "tasks" / "examples" / "two_pickups.yaml"
-MAP_KINDS = ("object", "voxel", "ground_truth")
+CONSTRAINT_KINDS: tuple[ConstraintKind, ...] = typing.get_args(ConstraintKind)
 FAULT_BRAKE_LIMIT_S = 5.0
 """Lockstep: sim time a faulted run may take to come to rest before the run ends anyway."""
 
@@ -64,8 +71,7 @@ class RuntimeConfig:
 
     scene: Path | None = DEFAULT_SCENE
     sequence: Path | None = DEFAULT_SEQUENCE
-    map_kind: str = "object"
-    constraint: str = "cbf"
+    map_kind: MapKind = "object"
     speed: float = 1.0
     """Live mode: sim seconds per wall second."""
     perception_delay_s: float = 0.0
@@ -86,8 +92,18 @@ class RuntimeConfig:
     def __post_init__(self) -> None:
         if self.map_kind not in MAP_KINDS:
             raise ValueError(f"map_kind must be one of {MAP_KINDS}, got {self.map_kind!r}")
-        if self.constraint not in ("cbf", "edf"):
-            raise ValueError(f"constraint must be 'cbf' or 'edf', got {self.constraint!r}")
+        if self.htmpc.constraint not in CONSTRAINT_KINDS:
+            raise ValueError(f"constraint must be 'cbf' or 'edf', got {self.htmpc.constraint!r}")
+
+    @property
+    def constraint(self) -> ConstraintKind:
+        """The controller's constraint kind (`HTMPCParams.constraint`)."""
+        return self.htmpc.constraint
+
+    def configured(self, map_kind: MapKind | None = None, constraint: ConstraintKind | None = None) -> RuntimeConfig:
+        """This configuration with another map kind and/or constraint kind (None: unchanged), validated."""
+        htmpc = self.htmpc if constraint is None else replace(self.htmpc, constraint=constraint)
+        return replace(self, map_kind=map_kind or self.map_kind, htmpc=htmpc)
         if not (0.05 <= self.speed <= 20.0):
             raise ValueError(f"speed must be within 0.05–20, got {self.speed}")
 
@@ -143,7 +159,7 @@ class Runtime:
         return self._loop.map
 
     @property
-    def controller(self):
+    def controller(self) -> HTMPC:
         return self._loop.controller
 
     @property
@@ -315,7 +331,7 @@ class Runtime:
         with loop.lock:
             loop.config = replace(loop.config, speed=float(speed))
 
-    def configure(self, map_kind: str | None = None, constraint: str | None = None) -> None:
+    def configure(self, map_kind: MapKind | None = None, constraint: ConstraintKind | None = None) -> None:
         """Switch map kind or constraint kind; takes effect now (the map restarts empty)."""
         self._loop.configure(map_kind, constraint)
 
@@ -329,22 +345,23 @@ class Runtime:
 
     # --- scene edits (simulation only) -------------------------------------------------------------
 
-    def _require_world(self) -> SimWorld:
+    def require_world(self) -> SimWorld:
+        """The simulated world; a RuntimeError when this runtime drives a real robot."""
         if self.world is None:
             raise RuntimeError("scene edits need the embedded simulation (this runtime drives a real robot)")
         return self.world
 
     def add_box(self, box: Box) -> None:
-        self._require_world().add_box(box)
+        self.require_world().add_box(box)
 
     def move_box(self, box_id: str, position: tuple[float, float, float], yaw: float | None = None) -> Box:
-        return self._require_world().move_box(box_id, position, yaw)
+        return self.require_world().move_box(box_id, position, yaw)
 
     def remove_box(self, box_id: str) -> Box:
-        return self._require_world().remove_box(box_id)
+        return self.require_world().remove_box(box_id)
 
     def scene(self) -> Scene:
-        return self._require_world().scene()
+        return self.require_world().scene()
 
     def randomise_scene(self, seed: int, n_boxes: int = 8) -> Scene:
         """The paper's random scene; the robot is moved to its start."""

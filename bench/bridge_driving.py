@@ -195,7 +195,7 @@ def drive(duration_s: float, burners: int = 2, burner_niceness: int = 0, raise_p
         bridge.start()
         sent_file = Path(tmp) / "sent.npy"
         driver = _start_driver(bridge, sent_file, raise_priority)
-        config = RuntimeConfig(map_kind="object", constraint="cbf")
+        config = RuntimeConfig(map_kind="object")
         rt = Runtime(config if raise_priority else replace(config, live_niceness=None), backend=bridge.robot)
         bridge.attach(rt)
         command = bridge.robot.command

@@ -141,7 +141,7 @@ def _end_lap(rt: Runtime, tally: Tally) -> None:
 def lockstep_soak(sim_minutes: float, seed: int = 0) -> Tally:
     """The looping sequence with boxes moving, in simulated time; collisions, crashes, faults, memory."""
     tally = Tally()
-    rt = Runtime(RuntimeConfig(map_kind="object", constraint="cbf"), sequence=load_sequence(SEQUENCE))
+    rt = Runtime(RuntimeConfig(map_kind="object"), sequence=load_sequence(SEQUENCE))
     mover = BoxMover(tally, _goals(rt), seed)
     total = sim_minutes * 60.0
     done = 0.0

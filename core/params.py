@@ -8,8 +8,22 @@ docstring says why we differ.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
+
+from core.types import Posterior
+
+# The closed option sets of the tunables. Literals, not enums: the values stay plain strings in YAML and JSON,
+# and a params file is checked against them by pydantic (`core/params_file.py`); `typing.get_args` lists them.
+ConstraintKind = Literal["cbf", "edf"]
+"""How the map's distance field bounds the robot: a CBF (eq. 10) or the plain h ≥ 0 baseline."""
+Hierarchy = Literal["lexicographic", "weighted"]
+"""How the task costs are ordered: strictly (eqs. 6–7) or as one weighted sum (for comparison)."""
+SlackGroups = Literal["sphere", "body", "node"]
+"""Collision slacks per node: one per sphere, one per body (base+rack, arm) or one per node."""
+EDFGeometry = Literal["completed", "surface"]
+"""What the object map's EDF measures the distance to: completed solid boxes, or observed surfaces (9a)."""
 
 
 @dataclass(frozen=True)
@@ -126,7 +140,7 @@ class HTMPCParams:
     gamma: float = 1.0
     """CBF decay rate: dh/dt ≥ −gamma h. Smaller is more cautious."""
     delta_safe_m: float = 0.25
-    constraint: str = "cbf"
+    constraint: ConstraintKind = "cbf"
     """'cbf' (eq. 10) or 'edf' (h ≥ 0 baseline)."""
     lex_tolerance: float = 0.01
     """Added to the stored |e_i*| in (7c), nodes 2..N (m or rad)."""
@@ -140,7 +154,7 @@ class HTMPCParams:
     boxes")."""
     slack_linear: float = 50.0
     slack_quadratic: float = 1.0
-    slack_groups: str = "body"
+    slack_groups: SlackGroups = "body"
     """Collision slacks per node: 'sphere' (one per sphere), 'body' (base+rack, arm) or 'node' (one).
     Fewer slacks make each QP stage smaller (HPIPM's cost grows with the cube of its size)."""
     Q_base: tuple[float, float, float] = (1.0, 1.0, 0.5)
@@ -166,7 +180,7 @@ class HTMPCParams:
     iteration")."""
     control_rate_hz: float = 10.0
     command_rate_hz: float = 100.0
-    hierarchy: str = "lexicographic"
+    hierarchy: Hierarchy = "lexicographic"
     """'lexicographic' (eqs. 6–7) or 'weighted' (one weighted-sum MPC, for comparison)."""
     trust_region_m: float = 1.0
     """Per SQP iteration, base x and y may move at most this far from the linearisation point ..."""
@@ -243,9 +257,18 @@ class MappingParams:
     merge_gate_m: float = 0.08
     """A second segment lying on an already matched object's surface (mean distance below this) joins it."""
     registration_trigger_m: float = 0.04
-    """ICP runs when the median distance of a matched segment to its object's surface exceeds this."""
+    """ICP runs when at least `registration_trigger_fraction` of a matched segment's sample lies farther than
+    this (m) from its object's surface."""
+    registration_trigger_fraction: float = 0.2
+    registration_accept_ratio: float = 0.7
+    """ICP's motion is taken only when it brings the sample's mean distance below this fraction of what it was
+    before ..."""
+    registration_min_gain_voxels: float = 0.5
+    """... and closer by more than this many voxels (× `voxel_m`): a shift within the voxel noise is no push."""
     icp_max_correspondence_m: float = 0.35
     icp_max_iterations: int = 30
+    icp_normal_radius_voxels: float = 2.5
+    """Radius of the point-to-plane ICP's normal estimate, in voxels (× `voxel_m`)."""
 
     # --- POCD consistency (eqs. 1–4) --------------------------------------------------------------
     tau_m: float = 0.2
@@ -300,7 +323,7 @@ class MappingParams:
     """OctoMap's defaults (hit 0.7, miss 0.4, clamping 0.12–0.97); occupied when log-odds > 0."""
 
     # --- local EDF (9a–9b) --------------------------------------------------------------------------
-    edf_geometry: str = "completed"
+    edf_geometry: EDFGeometry = "completed"
     """What the object map's EDF is the distance to: 'completed' (box-like objects are their solid boxes,
     `core/mapping/completion.py`; the others their surface columns) or 'surface' (the paper's 9a: the
     objects' observed surface voxels only, so unseen sides and insides read as free)."""
@@ -315,6 +338,10 @@ class MappingParams:
     keeps only the voxels surface points fell in, whose centroids are at |M_i| = 0 (`submap.py`); this is
     the paper's symbol, not a knob."""
 
+    def prior(self) -> Posterior:
+        """The belief q(l, v) a new object starts with: N(mu0, sigma0²) · Beta(alpha0, beta0)."""
+        return Posterior(mu=self.mu0_m, sigma=self.sigma0_m, alpha=self.alpha0, beta=self.beta0)
+
 
 @dataclass(frozen=True)
 class SequencerParams:
@@ -324,6 +351,8 @@ class SequencerParams:
     """Speed at which base references advance along the planned path."""
     lookahead_m: float = 1.5
     """In navigation the hand camera looks at the path point this far ahead."""
+    plan_bounds_m: tuple[float, float, float, float] = (-8.0, 8.0, -8.0, 8.0)
+    """The A* grid's extent in the world: x_min, x_max, y_min, y_max."""
     grid_cell_m: float = 0.1
     inflation_m: float = 0.8
     """Obstacles are grown by this radius for A*: about the clearance the controller keeps (the base's half

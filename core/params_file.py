@@ -18,7 +18,7 @@ import dataclasses
 import typing
 from functools import cache
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, create_model
 
@@ -41,11 +41,6 @@ class Tunables:
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
 
 
-CHOICES: dict[str, tuple[str, ...]] = {
-    "HTMPCParams.constraint": ("cbf", "edf"),
-    "HTMPCParams.hierarchy": ("lexicographic", "weighted"),
-    "HTMPCParams.slack_groups": ("sphere", "body", "node"),
-}
 POSITIVE = frozenset({
     "RobotParams.base_speed_mps", "RobotParams.base_yaw_rate_radps", "RobotParams.arm_speed_radps",
     "RobotParams.base_accel_mps2", "RobotParams.base_yaw_accel_radps2", "RobotParams.arm_accel_radps2",
@@ -70,8 +65,6 @@ FRACTIONS = frozenset({"MappingParams.theta_stat", "MappingParams.split_fraction
 
 def _bounded(key: str, annotation: Any, default: Any) -> Any:
     """The field's type with the bounds its meaning implies (see POSITIVE, FRACTIONS)."""
-    if key in CHOICES:
-        return Literal[CHOICES[key]]
     number = annotation if annotation in (int, float) else None
     args = typing.get_args(annotation)
     element = args[0] if typing.get_origin(annotation) is tuple and args and args[0] in (int, float) else None
@@ -101,7 +94,7 @@ def overrides_model(cls: type) -> type[BaseModel]:
     fields = {}
     for f in dataclasses.fields(cls):
         annotation = hints[f.name]
-        default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
+        default = f.default if f.default_factory is dataclasses.MISSING else f.default_factory()
         if dataclasses.is_dataclass(annotation):
             annotation = overrides_model(annotation)
         else:

@@ -6,14 +6,23 @@ Frozen dataclasses with numpy fields; no behaviour beyond cheap derived views, e
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import StrEnum
-from typing import Protocol, runtime_checkable
+from typing import Protocol
 
 import numpy as np
 
 NQ = 9
 """Joints of the robot: q = [x, y, yaw, 6 arm joints]."""
+
+Vec3 = tuple[float, float, float]
+
+
+def vec3(values: Iterable[float]) -> Vec3:
+    """Three floats from any three numbers (a list, an array, a GUI field): a typed (x, y, z)."""
+    x, y, z = (float(v) for v in values)
+    return x, y, z
 
 
 @dataclass(frozen=True)
@@ -56,7 +65,8 @@ class Observation:
 
     state: RobotState
     frames: tuple[DepthFrame, ...]
-    odometry: Odometry
+    odometry: Odometry | None
+    """None where no odometry is reported (frames handed to the map on their own)."""
 
 
 class ObjectStatus(StrEnum):
@@ -68,12 +78,13 @@ class ObjectStatus(StrEnum):
 
 @dataclass(frozen=True)
 class Posterior:
-    """q(l, v) = N(l | mu, sigma^2) · Beta(v | alpha, beta) of one object (docs/method.md, eq. 1)."""
+    """q(l, v) = N(l | mu, sigma^2) · Beta(v | alpha, beta) of one object (docs/method.md, eq. 1); a new
+    object's prior is `MappingParams.prior()`."""
 
-    mu: float = 0.0
-    sigma: float = 0.5
-    alpha: float = 2.0
-    beta: float = 1.0
+    mu: float
+    sigma: float
+    alpha: float
+    beta: float
 
     @property
     def consistency(self) -> float:
@@ -264,7 +275,6 @@ class Plan:
         return self.v[k] + self.u[k] * (tau - k * self.dt)
 
 
-@runtime_checkable
 class RobotBackend(Protocol):
     """A robot the runtime drives: the MuJoCo simulation or a real robot behind the bridge."""
 

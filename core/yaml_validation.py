@@ -53,10 +53,11 @@ def _locate(node: yaml.Node | None, loc: tuple, missing: bool = False) -> tuple[
                 if (nxt is not None and _mapping_child(node, nxt) is not None) or (nxt is None and not missing):
                     continue
                 return line, (*clean, *loc[i:])
-            node, line = found[1], found[0].start_mark.line + 1
+            key_node, node = found
+            line = key_node.start_mark.line + 1
         elif isinstance(node, yaml.SequenceNode) and isinstance(key, int) and key < len(node.value):
-            node = node.value[key]
-            line = node.start_mark.line + 1
+            item: yaml.Node = node.value[key]
+            node, line = item, item.start_mark.line + 1
         else:
             return line, (*clean, *loc[i:])
         clean.append(key)

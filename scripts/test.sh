@@ -5,6 +5,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh --dev
 .venv/bin/python -m ruff check .
+.venv/bin/python -m pyright --pythonpath .venv/bin/python  # [tool.pyright] in pyproject.toml: core/, tasks/, app/
 set +e
 .venv/bin/python -m pytest -q -ra --junitxml=test-artifacts/junit.xml "$@"
 status=$?

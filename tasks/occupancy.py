@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from scipy import ndimage
@@ -29,7 +30,7 @@ class OccupancyGrid:
         inside = np.all((idx >= 0) & (idx < shape), axis=1)
         occupied[idx[inside, 0], idx[inside, 1]] = True
         if inflation_m > 0 and occupied.any():
-            blocked = ndimage.distance_transform_edt(~occupied) * cell_m <= inflation_m
+            blocked = cast(np.ndarray, ndimage.distance_transform_edt(~occupied)) * cell_m <= inflation_m
         else:
             blocked = occupied
         return cls(np.array([x0, y0], float), cell_m, blocked)

@@ -8,7 +8,7 @@ navigation, [ee, base] for manipulation (docs/method.md, "The hierarchical-task 
 from __future__ import annotations
 
 import math
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Generic, Literal, TypeVar
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
@@ -60,18 +60,24 @@ class EEPose(_Strict):
 class Tolerance(_Strict):
     """When a subtask counts as reached."""
 
-    position_m: float = Field(0.1, gt=0.0)
-    orientation_deg: float = Field(10.0, gt=0.0)
+    position_m: float = Field(default=0.1, gt=0.0)
+    orientation_deg: float = Field(default=10.0, gt=0.0)
 
 
-class _SubtaskBase(_Strict):
+PoseT = TypeVar("PoseT", BasePose, EEPose)
+
+
+class _SubtaskBase(_Strict, Generic[PoseT]):
     name: str = ""
     tolerance: Tolerance = Tolerance()
-    timeout_s: float = Field(120.0, gt=0.0)
-    dwell_s: float = Field(0.0, ge=0.0)
+    timeout_s: float = Field(default=120.0, gt=0.0)
+    dwell_s: float = Field(default=0.0, ge=0.0)
     """Time to hold the target within tolerance before the subtask completes (pick-up)."""
     priority: list[TaskName] | None = None
     """Order of the HTMPC costs while active; None: the kind's default."""
+    if TYPE_CHECKING:  # each kind declares its own target and waypoints
+        target: PoseT | None
+        waypoints: list[PoseT]
 
     @field_validator("priority")
     @classmethod
@@ -86,16 +92,16 @@ class _SubtaskBase(_Strict):
             raise ValueError("a subtask needs a target or waypoints")
         return self
 
-    def goal(self):
+    def goal(self) -> PoseT:
         """The final pose: the target, else the last waypoint."""
         return self.target if self.target is not None else self.waypoints[-1]
 
-    def path(self) -> list:
+    def path(self) -> list[PoseT]:
         """Waypoints followed by the target."""
         return [*self.waypoints, *([self.target] if self.target is not None else [])]
 
 
-class BaseSubtask(_SubtaskBase):
+class BaseSubtask(_SubtaskBase[BasePose]):
     """Drive the base to a pose, through optional waypoints (whole-body navigation).
 
     `ee` (frame: base) holds the hand at that pose relative to the base while it drives (the paper's
@@ -119,7 +125,7 @@ class BaseSubtask(_SubtaskBase):
         return list(self.priority) if self.priority else ["base", "ee"]
 
 
-class EESubtask(_SubtaskBase):
+class EESubtask(_SubtaskBase[EEPose]):
     """Bring the end effector to a pose (manipulation), through optional waypoints; in the base frame the base
     holds where it is and only the arm moves."""
 

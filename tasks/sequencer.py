@@ -15,7 +15,7 @@ from enum import StrEnum
 
 import numpy as np
 
-from core.params import SequencerParams
+from core.params import HTMPCParams, SequencerParams
 from core.robot.model import READY_Q, RobotModel
 from core.types import References, RobotState
 from tasks.occupancy import OccupancyGrid
@@ -89,12 +89,14 @@ class Sequencer:
     """Owns the progress through one sequence; pure function of the inputs it is given."""
 
     def __init__(self, robot: RobotModel, sequence: TaskSequence, params: SequencerParams | None = None,
-                 n_nodes: int = 10, dt: float = 0.3,
-                 bounds: tuple[float, float, float, float] = (-8.0, 8.0, -8.0, 8.0)) -> None:
+                 n_nodes: int | None = None, dt: float | None = None) -> None:
+        """`n_nodes`, `dt` (s): the controller's horizon the references are sampled on (default: `HTMPCParams`)."""
         self.robot = robot
         self.sequence = sequence
         self.params = params or SequencerParams()
-        self.n_nodes, self.dt, self.bounds = n_nodes, dt, bounds
+        horizon = HTMPCParams()
+        self.n_nodes = horizon.N if n_nodes is None else n_nodes
+        self.dt = horizon.dt_s if dt is None else dt
         ready = robot.ee_pose(np.concatenate([[0.0, 0.0, 0.0], READY_Q[3:]]))
         self.ee_offset_base = ready[:3, 3]
         self.reset()
@@ -111,7 +113,8 @@ class Sequencer:
         self._s_progress = 0.0
         self._plan_t = -math.inf
         self._grid_sig: int | None = None
-        self._hold_base: np.ndarray | None = None
+        self._hold_base = np.zeros(3)
+        """Where the base holds during an EE subtask (set when the subtask begins)."""
         self._ee_waypoint = 0
         self._base_waypoint = 0
         self._paused_at: float | None = None
@@ -168,10 +171,9 @@ class Sequencer:
         sub = self.active
         if sub is None:
             return None
-        if self._started_t is None:
-            self._begin(state, t)
+        started_t = self._started_t if self._started_t is not None else self._begin(state, t)
         pos_err, ori_err = self._errors(sub, state)
-        elapsed = t - self._started_t
+        elapsed = t - started_t
         tol = sub.tolerance
         within = pos_err <= tol.position_m and (math.isnan(ori_err) or ori_err <= tol.orientation_deg)
         if isinstance(sub, EESubtask) and self._ee_waypoint < len(sub.waypoints):
@@ -194,7 +196,8 @@ class Sequencer:
         self._switched = False
         return refs
 
-    def _begin(self, state: RobotState, t: float) -> None:
+    def _begin(self, state: RobotState, t: float) -> float:
+        """Start the active subtask at time t (returned)."""
         self._started_t = t
         self._held_since = None
         self._switched = True
@@ -210,6 +213,7 @@ class Sequencer:
             self._hold_base = state.q[:3].copy()
         self._ee_waypoint = 0
         self._base_waypoint = 0
+        return t
 
     def _set_progress(self, outcome: Outcome, elapsed: float, held: float, pos: float, ori: float,
                       message: str | None = None) -> None:
@@ -219,8 +223,8 @@ class Sequencer:
             message=p.message if message is None else message)
 
     def _errors(self, sub: BaseSubtask | EESubtask, state: RobotState) -> tuple[float, float]:
-        goal = sub.goal()
         if isinstance(sub, BaseSubtask):
+            goal = sub.goal()
             shift = self.progress[self.index].goal_shift
             xy = np.array(shift.driven) if shift is not None else goal.xy()
             pos = float(np.hypot(*(state.q[:2] - xy)))
@@ -233,6 +237,7 @@ class Sequencer:
         pos = float(np.linalg.norm(T[:3, 3] - np.array(target.position)))
         if self._ee_waypoint < len(sub.waypoints) and pos <= sub.tolerance.position_m:
             self._ee_waypoint += 1
+        goal = sub.goal()
         R = goal.rotation()
         ori = math.nan if R is None else _angle_between(T[:3, :3], R)
         pos_goal = float(np.linalg.norm(T[:3, 3] - np.array(goal.position)))
@@ -245,24 +250,27 @@ class Sequencer:
             target = sub.path()[min(self._ee_waypoint, len(sub.path()) - 1)]
             return manipulation_references(np.array(target.position), target.rotation(), self._hold_base, order,
                                            self._switched, frame=sub.frame)
-        self._maybe_replan(sub, state, occupied, t)
-        s = path_arclength(self.path)
-        self._s_progress = project_on_path(self.path, s, state.q[:2], self._s_progress)
-        self._pass_waypoints(sub, state.q[:2], s)
+        path = self._maybe_replan(sub, state, occupied, t)
+        s = path_arclength(path)
+        self._s_progress = project_on_path(path, s, state.q[:2], self._s_progress)
+        self._pass_waypoints(sub, state.q[:2], path, s)
         hold = None if sub.ee is None else (np.array(sub.ee.position), sub.ee.rotation())
-        return navigation_references(self.path, self._s_progress, float(state.q[2]), sub.goal().yaw_rad,
+        return navigation_references(path, self._s_progress, float(state.q[2]), sub.goal().yaw_rad,
                                      self.ee_offset_base, self.params, self.n_nodes, self.dt, order, self._switched,
                                      ee_hold=hold)
 
-    def _maybe_replan(self, sub: BaseSubtask, state: RobotState, occupied: np.ndarray | None, t: float) -> None:
+    def _maybe_replan(self, sub: BaseSubtask, state: RobotState, occupied: np.ndarray | None,
+                      t: float) -> np.ndarray:
+        """The base's path to the subtask's goals: the current one, or a new plan when the map changed or
+        the re-plan period passed."""
         grid = None
         if occupied is not None:
             p = self.params
-            grid = OccupancyGrid.from_points(occupied, self.bounds, p.grid_cell_m, p.inflation_m, p.obstacle_z_m)
+            grid = OccupancyGrid.from_points(occupied, p.plan_bounds_m, p.grid_cell_m, p.inflation_m, p.obstacle_z_m)
         sig = None if grid is None else grid.signature()
         due = t - self._plan_t >= self.params.replan_period_s
         if self.path is not None and sig == self._grid_sig and not due:
-            return
+            return self.path
         goals = [w.xy() for w in sub.path()[self._base_waypoint:]]
         notes: list[str] = []
         shift = None
@@ -288,17 +296,18 @@ class Sequencer:
             if shift is not None and shift != p.goal_shift:
                 log.info("subtask %d: %s", self.index, message)
             self.progress[self.index] = replace(p, message=message, goal_shift=shift)
+        return path
 
-    def _pass_waypoints(self, sub: BaseSubtask, xy: np.ndarray, s: np.ndarray) -> None:
+    def _pass_waypoints(self, sub: BaseSubtask, xy: np.ndarray, path: np.ndarray, s: np.ndarray) -> None:
         """Mark intermediate base waypoints passed, so a re-plan never leads back to one.
 
         Passed: the base came within `waypoint_pass_m` of it, or its progress along the plan is beyond the
         plan's point nearest to it (smoothed paths cut corners; a skipped waypoint is never reached)."""
-        if len(self.path) < 2:
+        if len(path) < 2:
             return
         while self._base_waypoint < len(sub.waypoints):
             w = sub.waypoints[self._base_waypoint].xy()
             near = float(np.hypot(*(xy - w))) <= self.params.waypoint_pass_m
-            if not (near or self._s_progress >= project_on_path(self.path, s, w)):
+            if not (near or self._s_progress >= project_on_path(path, s, w)):
                 return
             self._base_waypoint += 1

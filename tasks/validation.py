@@ -43,10 +43,16 @@ ACCEPT_MARGIN_M = 0.01
 
 
 class BoxLike(Protocol):
-    id: str
-    position: tuple[float, float, float]
-    size: tuple[float, float, float]
-    yaw: float
+    """A box as plain geometry, read-only: a scene `Box` or an `Obstacle`."""
+
+    @property
+    def id(self) -> str: ...
+    @property
+    def position(self) -> tuple[float, float, float]: ...
+    @property
+    def size(self) -> tuple[float, float, float]: ...
+    @property
+    def yaw(self) -> float: ...
 
 
 @dataclass(frozen=True)
@@ -225,7 +231,7 @@ def _arm_reach(robot: RobotModel, samples: int = 1500) -> tuple[np.ndarray, floa
     arm configurations within limits (a fixed sample: deterministic)."""
     rng = np.random.default_rng(0)
     best_ee = best_wrist = 0.0
-    shoulder = None
+    shoulder = np.zeros(3)
     for _ in range(samples):
         q = robot.random_q(rng)
         q[:3] = 0.0

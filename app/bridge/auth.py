@@ -17,6 +17,7 @@ import logging
 import os
 import secrets
 import stat
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
@@ -105,7 +106,7 @@ def _generate(path: Path) -> Token:
 
 
 def resolve_token(explicit: str | None = None, token_file: Path | None = None,
-                  environ: dict[str, str] | None = None) -> Token:
+                  environ: Mapping[str, str] | None = None) -> Token:
     """The token by the order above; generates and saves one on first run."""
     environ = os.environ if environ is None else environ
     if explicit:
@@ -118,7 +119,7 @@ def resolve_token(explicit: str | None = None, token_file: Path | None = None,
     return _generate(path)
 
 
-def read_token(token_file: Path | None = None, environ: dict[str, str] | None = None) -> str:
+def read_token(token_file: Path | None = None, environ: Mapping[str, str] | None = None) -> str:
     """What a driver on this machine uses: `HTMPC_BRIDGE_TOKEN`, else the token file (checked as above)."""
     environ = os.environ if environ is None else environ
     if environ.get(TOKEN_ENV):

@@ -20,7 +20,7 @@ import struct
 import numpy as np
 from pydantic import ValidationError
 
-from app.bridge.protocol import DepthFrameHeader, validation_text
+from app.bridge.protocol import DepthEncoding, DepthFrameHeader, validation_text
 from core.types import DepthFrame
 
 MAGIC = b"HDF1"
@@ -35,7 +35,7 @@ class FrameFormatError(ValueError):
     """A binary message that is not a valid depth frame; the message says what is wrong."""
 
 
-def encode_depth_frame(frame: DepthFrame, encoding: str = "float32_m") -> bytes:
+def encode_depth_frame(frame: DepthFrame, encoding: DepthEncoding = "float32_m") -> bytes:
     """The binary message for `frame` (depth in metres, 0 = no return)."""
     depth = np.asarray(frame.depth)
     header = DepthFrameHeader(t=frame.t, camera=frame.camera, width=depth.shape[1], height=depth.shape[0],

@@ -21,7 +21,17 @@ from websockets.sync.client import ClientConnection, connect
 
 from app.bridge.auth import read_token
 from app.bridge.depth_framing import encode_depth_frame
-from app.bridge.protocol import BRIDGE_TEXT, Ack, Command, ErrorMessage, Hello, OdometryIn, StateMessage, Welcome
+from app.bridge.protocol import (
+    BRIDGE_TEXT,
+    Ack,
+    Command,
+    DepthEncoding,
+    ErrorMessage,
+    Hello,
+    OdometryIn,
+    StateMessage,
+    Welcome,
+)
 from core.types import DepthFrame, Odometry
 
 log = logging.getLogger(__name__)
@@ -62,7 +72,7 @@ class DriverClient:
         msg = StateMessage(t=t, q=[float(x) for x in q], v=[float(x) for x in v], odometry=odo)
         self.ws.send(msg.model_dump_json())
 
-    def send_frame(self, frame: DepthFrame, encoding: str = "float32_m") -> None:
+    def send_frame(self, frame: DepthFrame, encoding: DepthEncoding = "float32_m") -> None:
         self.ws.send(encode_depth_frame(frame, encoding))
 
     def receive(self, timeout_s: float | None = None) -> Command | ErrorMessage | None:

@@ -9,6 +9,7 @@ the log, not to the client).
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping
 
 from fastapi import FastAPI, Request, status
 from fastapi.exceptions import RequestValidationError
@@ -29,7 +30,7 @@ def file_problems(err: FileFormatError) -> list[Problem]:
 
 
 def _reply(status_code: int, detail: str, problems: list[Problem] | None = None,
-           headers: dict[str, str] | None = None) -> JSONResponse:
+           headers: Mapping[str, str] | None = None) -> JSONResponse:
     return JSONResponse(ErrorOut(detail=detail, problems=problems or []).model_dump(mode="json"), status_code,
                         headers=headers)
 
@@ -105,8 +106,8 @@ class InternalErrorMiddleware:
 
 def install_error_handlers(app: FastAPI) -> None:
     """Register the handlers (and the last-resort middleware) on `app`."""
-    app.add_exception_handler(RequestValidationError, _invalid_request)
-    app.add_exception_handler(HTTPException, _http_error)
+    app.exception_handler(RequestValidationError)(_invalid_request)
+    app.exception_handler(HTTPException)(_http_error)
     app.add_middleware(InternalErrorMiddleware)
-    app.add_exception_handler(FileFormatError, _bad_file)
-    app.add_exception_handler(SceneEditError, _refused_edit)
+    app.exception_handler(FileFormatError)(_bad_file)
+    app.exception_handler(SceneEditError)(_refused_edit)

@@ -17,6 +17,8 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
 
+from app.map_kind import MapKind
+from core.params import ConstraintKind
 from core.types import NQ
 
 PROTOCOL_VERSION = 1
@@ -87,6 +89,12 @@ DRIVER_TEXT = TypeAdapter(DriverText)
 """Validates any JSON text message from a driver."""
 
 
+DepthEncoding = Literal["float32_m", "uint16_mm"]
+"""How a depth frame's pixels are sent: float32 metres or uint16 millimetres."""
+RejectionCode = Literal["bad_json", "invalid_message", "invalid_state", "invalid_frame", "stale_ack"]
+"""Why the bridge rejected a driver's message."""
+
+
 class DepthFrameHeader(Message):
     """JSON header of a binary depth-frame message; the pixels follow it (see `depth_framing`)."""
 
@@ -95,7 +103,7 @@ class DepthFrameHeader(Message):
     camera: Name
     width: Annotated[int, Field(ge=1, le=4096)]
     height: Annotated[int, Field(ge=1, le=4096)]
-    encoding: Literal["float32_m", "uint16_mm"] = "float32_m"
+    encoding: DepthEncoding = "float32_m"
     K: Matrix3
     T_world_camera: Matrix4
     range_m: Annotated[float, Field(gt=0.0, le=100.0)] = 3.0
@@ -139,7 +147,7 @@ class ErrorMessage(Message):
     """A message of the driver was rejected (and counted); nothing of it was passed on."""
 
     type: Literal["error"] = "error"
-    code: Literal["bad_json", "invalid_message", "invalid_state", "invalid_frame", "stale_ack"]
+    code: RejectionCode
     message: str
     count: int
 
@@ -336,8 +344,8 @@ class StepIn(Message):
 class ConfigIn(Message):
     """Switch the map kind, the constraint kind or the live speed (omitted: unchanged)."""
 
-    map_kind: Literal["object", "voxel", "ground_truth"] | None = None
-    constraint: Literal["cbf", "edf"] | None = None
+    map_kind: MapKind | None = None
+    constraint: ConstraintKind | None = None
     speed: Annotated[float, Field(ge=0.05, le=20.0)] | None = None
 
 

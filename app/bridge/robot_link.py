@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from app.bridge.protocol import STALE_AFTER_S, Ack, Command, StateMessage
+from app.bridge.protocol import STALE_AFTER_S, Ack, Command, CommandReason, RejectionCode, StateMessage
 from core.types import NQ, DepthFrame, Odometry, RobotState
 
 log = logging.getLogger(__name__)
@@ -34,9 +34,9 @@ PENDING_ACKS = 1024
 class MessageRejectedError(ValueError):
     """A message that validated but cannot be accepted (e.g. time going backwards); `code` names the kind."""
 
-    def __init__(self, code: str, message: str) -> None:
+    def __init__(self, code: RejectionCode, message: str) -> None:
         super().__init__(message)
-        self.code = code
+        self.code: RejectionCode = code
 
 
 class LinkBusyError(RuntimeError):
@@ -60,7 +60,7 @@ class SentCommand:
     seq: int
     t: float
     qdot: np.ndarray
-    reason: str
+    reason: CommandReason
     at: float
     delivered: bool
 
@@ -170,7 +170,7 @@ class RobotLink:
 
     # --- outgoing ----------------------------------------------------------------------------------
 
-    def send_command(self, qdot: np.ndarray, t: float, reason: str = "runtime") -> SentCommand:
+    def send_command(self, qdot: np.ndarray, t: float, reason: CommandReason = "runtime") -> SentCommand:
         """Issue a command; delivered to the driver if one is connected. Returns what was issued."""
         with self._lock:
             self._seq += 1
@@ -188,7 +188,7 @@ class RobotLink:
                 sender(msg.model_dump_json(), seq)
         return sent
 
-    def send_zero(self, reason: str) -> SentCommand:
+    def send_zero(self, reason: CommandReason) -> SentCommand:
         """Command zero velocity now (safety), stamped with the latest state's time."""
         sent = self.send_command(np.zeros(NQ), self.latest_t(), reason)
         self.record("zero_command", reason)

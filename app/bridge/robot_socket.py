@@ -13,6 +13,8 @@ import asyncio
 import contextlib
 import logging
 from collections import deque
+from collections.abc import Mapping
+from typing import Any
 
 from fastapi import APIRouter, WebSocket, status
 from fastapi.responses import JSONResponse
@@ -20,7 +22,17 @@ from pydantic import ValidationError
 
 from app.bridge.auth import Token
 from app.bridge.depth_framing import FrameFormatError, decode_depth_frame
-from app.bridge.protocol import DRIVER_TEXT, Ack, ErrorMessage, ErrorOut, Hello, StateMessage, Welcome, validation_text
+from app.bridge.protocol import (
+    DRIVER_TEXT,
+    Ack,
+    ErrorMessage,
+    ErrorOut,
+    Hello,
+    RejectionCode,
+    StateMessage,
+    Welcome,
+    validation_text,
+)
 from app.bridge.robot_link import LinkBusyError, MessageRejectedError, RobotLink
 
 log = logging.getLogger(__name__)
@@ -75,7 +87,8 @@ def _accept_text(link: RobotLink, text: str) -> None:
     except ValidationError as err:
         kinds = {e["type"] for e in err.errors()}
         heads = {e["loc"][0] for e in err.errors() if e["loc"]}
-        code = "bad_json" if "json_invalid" in kinds else "invalid_state" if "state" in heads else "invalid_message"
+        code: RejectionCode = ("bad_json" if "json_invalid" in kinds else "invalid_state" if "state" in heads
+                               else "invalid_message")
         raise MessageRejectedError(code, validation_text(err)) from err
     if isinstance(msg, StateMessage):
         link.accept_state(msg)
@@ -85,7 +98,7 @@ def _accept_text(link: RobotLink, text: str) -> None:
         link.name_driver(msg.driver)
 
 
-def handle(link: RobotLink, message: dict) -> str | None:
+def handle(link: RobotLink, message: Mapping[str, Any]) -> str | None:
     """Pass one received message on to the link; returns the error message text if it was rejected."""
     try:
         if message.get("bytes") is not None:
@@ -94,7 +107,8 @@ def handle(link: RobotLink, message: dict) -> str | None:
             _accept_text(link, message["text"])
         return None
     except FrameFormatError as err:
-        code, text = "invalid_frame", str(err)
+        code: RejectionCode = "invalid_frame"
+        text = str(err)
     except MessageRejectedError as err:
         code, text = err.code, str(err)
     count = link.reject(code, text)

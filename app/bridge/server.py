@@ -42,7 +42,14 @@ class _DenialLogFilter(logging.Filter):
         return "without completing handshake" not in record.getMessage()
 
 
-logging.getLogger("uvicorn.error").addFilter(_DenialLogFilter())
+DENIAL_LOG_FILTER = _DenialLogFilter()
+
+
+def _quiet_denials() -> None:
+    """Drop uvicorn's line about our intended handshake refusals (once per process; at start, not import)."""
+    uvicorn_log = logging.getLogger("uvicorn.error")
+    if DENIAL_LOG_FILTER not in uvicorn_log.filters:
+        uvicorn_log.addFilter(DENIAL_LOG_FILTER)
 
 
 def halt_reason(run_state: RunState) -> CommandReason:
@@ -89,6 +96,7 @@ class BridgeServer:
 
     def start(self, timeout_s: float = 15.0) -> None:
         """Serve in a background thread; returns once listening (RuntimeError if it cannot)."""
+        _quiet_denials()
         config = uvicorn.Config(self.app, host=self.host, port=self._port, log_level=self._log_level,
                                 ws="websockets-sansio", lifespan="off")
         self._server = uvicorn.Server(config)

@@ -29,7 +29,7 @@ from websockets.exceptions import ConnectionClosed, InvalidStatus
 import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported)
 from app.bridge.auth import TOKEN_ENV, read_token
 from app.bridge.driver_client import DriverClient
-from app.bridge.protocol import Command
+from app.bridge.protocol import Command, DepthEncoding
 from app.priority import set_thread_niceness
 from core.params import SimParams
 from core.robot.model import RobotModel
@@ -64,11 +64,11 @@ class SimDriver:
     """Runs a `SimRobot` in real time and bridges it to the link of a connected `DriverClient`."""
 
     def __init__(self, client: DriverClient, robot: SimRobot, state_hz: float = 100.0,
-                 command_timeout_s: float = 0.25, encoding: str = "float32_m") -> None:
+                 command_timeout_s: float = 0.25, encoding: DepthEncoding = "float32_m") -> None:
         self.client, self.robot = client, robot
         self.period_s = 1.0 / state_hz
         self.command_timeout_s = command_timeout_s
-        self.encoding = encoding
+        self.encoding: DepthEncoding = encoding
         self._inbox = _Inbox()
         self._lock = threading.Lock()
         self._stop = threading.Event()
@@ -166,7 +166,8 @@ def _connect(client: DriverClient, timeout_s: float) -> bool:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="python -m app.bridge.sim_driver", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m app.bridge.sim_driver",
+                                     description=(__doc__ or "").partition("\n")[0])
     parser.add_argument("--url", default="ws://127.0.0.1:8090/robot", help="the bridge's robot link")
     parser.add_argument("--token-file", type=Path, default=None,
                         help="file holding the bridge token, mode 0600 (default: HTMPC_BRIDGE_TOKEN, else "

@@ -27,10 +27,8 @@ from tasks.sequencer import SubtaskProgress
 
 
 def json_array(a: np.ndarray) -> list:
-    """Nested lists of floats with None for NaN/inf."""
+    """Nested lists of floats with None for NaN/inf (a plan's arrays: one or more dimensions)."""
     a = np.asarray(a, dtype=float)
-    if a.ndim == 0:
-        return finite_or_none(float(a))
     return [json_array(row) for row in a] if a.ndim > 1 else [finite_or_none(float(x)) for x in a]
 
 

@@ -23,7 +23,7 @@ import http
 import ipaddress
 import secrets
 import threading
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from http.cookies import CookieError, SimpleCookie
 from urllib.parse import parse_qs, urlsplit
@@ -123,15 +123,20 @@ class PageAccess:
         return _text(http.HTTPStatus.SEE_OTHER, "access granted\n", {"Location": "/", "Set-Cookie": cookie})
 
 
+ProcessRequest = Callable[[ws_server.ServerConnection, Request], Awaitable[Response | None] | Response | None]
+"""websockets' hook that may answer a handshake's HTTP request itself."""
+
+
 class _GuardedServe(ws_server.serve):
     """websockets' `serve` with a check in front of the `process_request` viser passes (viser's only)."""
 
     check: Callable[[Request], Response | None] | None = None
     installed = False
 
-    def __init__(self, handler, *args, process_request=None, **kwargs) -> None:
+    def __init__(self, handler, *args, process_request: ProcessRequest | None = None, **kwargs) -> None:
         check = type(self).check
-        if check is not None and getattr(process_request, "__module__", "") == "viser.infra._infra":
+        if (check is not None and process_request is not None
+                and getattr(process_request, "__module__", "") == "viser.infra._infra"):
             inner = process_request
 
             def guarded(connection: ws_server.ServerConnection, request: Request):

@@ -14,7 +14,9 @@ import threading
 
 import numpy as np
 import viser
+import viser.transforms as vtf
 
+from app.replay import ReplaySource
 from app.runtime import Runtime
 from app.snapshot import Snapshot
 from app.target_check import check_targets
@@ -31,35 +33,38 @@ from app.ui.authoring import (
     replace_subtask,
 )
 from app.ui.notify import guarded, notify_all
+from core.types import Vec3, vec3
 from tasks.schema import BaseSubtask, EEPose, TaskSequence
 from tasks.sequence_file import parse_sequence, sequence_to_yaml
 from tasks.validation import Severity, TargetError, TargetFinding, changed_subtasks
 
-NONE = "(none)"
+NONE: str = "(none)"
+"""The dropdown entry that selects nothing."""
 
 
 def _rpy_deg(wxyz: np.ndarray) -> tuple[float, float, float]:
-    R = viser.transforms.SO3(np.asarray(wxyz)).as_matrix()
+    R = vtf.SO3(np.asarray(wxyz)).as_matrix()
     pitch = math.asin(-float(np.clip(R[2, 0], -1.0, 1.0)))
     roll = math.atan2(R[2, 1], R[2, 2])
     yaw = math.atan2(R[1, 0], R[0, 0])
-    return tuple(round(math.degrees(a), 2) for a in (roll, pitch, yaw))
+    return vec3(round(math.degrees(a), 2) for a in (roll, pitch, yaw))
 
 
 def _label(i: int, sub) -> str:
     return f"{i + 1}. {sub.kind}: {sub.name}"
 
 
-def _ee_marker(pose: EEPose) -> tuple[tuple[float, float, float], tuple[float, ...]]:
+def _ee_marker(pose: EEPose) -> tuple[Vec3, np.ndarray]:
+    """Where to draw an EE target: position and wxyz quaternion (identity when position only)."""
     R = pose.rotation()
-    wxyz = (1.0, 0.0, 0.0, 0.0) if R is None else tuple(viser.transforms.SO3.from_matrix(R).wxyz)
-    return tuple(pose.position), wxyz
+    wxyz = np.array([1.0, 0.0, 0.0, 0.0]) if R is None else vtf.SO3.from_matrix(R).wxyz
+    return pose.position, wxyz
 
 
 class AuthoringPanel:
     """The 'Sequence' folder, the target gizmo `/authoring/target` and markers of every goal."""
 
-    def __init__(self, server: viser.ViserServer, runtime: Runtime) -> None:
+    def __init__(self, server: viser.ViserServer, runtime: Runtime | ReplaySource) -> None:
         self.server, self.runtime = server, runtime
         self._lock = threading.RLock()
         self.history = SequenceHistory(runtime.sequence)
@@ -180,7 +185,7 @@ class AuthoringPanel:
                 else:
                     pos = (pose.x, pose.y, 0.02)
                     yaw = pose.yaw_rad or 0.0
-                    wxyz = (math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2))
+                    wxyz = np.array([math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
                     color = (40, 110, 240)
                     parent = "/authoring/goals"
                 name = f"{parent}/{i}_{k}"
@@ -195,7 +200,7 @@ class AuthoringPanel:
             return
         self._syncing = True
         try:
-            self.target_pos.value = tuple(round(float(v), 3) for v in self.target.position)
+            self.target_pos.value = vec3(round(float(v), 3) for v in self.target.position)
             self.target_rpy.value = _rpy_deg(self.target.wxyz)
         finally:
             self._syncing = False
@@ -205,9 +210,9 @@ class AuthoringPanel:
             return
         self._syncing = True
         try:
-            self.target.position = tuple(self.target_pos.value)
+            self.target.position = vec3(self.target_pos.value)
             r, p, y = np.radians(self.target_rpy.value)
-            self.target.wxyz = viser.transforms.SO3.from_rpy_radians(r, p, y).wxyz
+            self.target.wxyz = vtf.SO3.from_rpy_radians(r, p, y).wxyz
         finally:
             self._syncing = False
 
@@ -226,7 +231,7 @@ class AuthoringPanel:
                     raise ValueError("select the base subtask the waypoint belongs to")
                 new, select = add_base_waypoint(seq, i, float(p[0]), float(p[1])), i
             else:
-                new = add_ee_target(seq, tuple(float(v) for v in p), _rpy_deg(self.target.wxyz))
+                new = add_ee_target(seq, vec3(p), _rpy_deg(self.target.wxyz))
                 select = len(seq.subtasks)
             try:
                 self._commit(new, select=select)

@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 import numpy as np
 
+NamedColour = Literal["red", "green", "yellow", "blue"]
+"""The named colours the studio gives viser's notifications and progress bar."""
 
-def consistency_rgb(e_v: float, theta_stat: float = 0.4) -> tuple[int, int, int]:
+
+def consistency_rgb(e_v: float, theta_stat: float) -> tuple[int, int, int]:
     """Green at E[v] = 1, yellow half way, red at the removal threshold and below."""
     x = float(np.clip((e_v - theta_stat) / (1.0 - theta_stat), 0.0, 1.0))
     return (int(round(230 * (1 - x) + 40 * x)), int(round(60 * (1 - x) + 190 * x)), 60)

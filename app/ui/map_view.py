@@ -4,6 +4,7 @@ the map's occupied points, an EDF slice, collision spheres, camera frusta and de
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import trimesh
@@ -12,29 +13,32 @@ import viser
 from app.snapshot import Snapshot
 from app.ui.colors import consistency_rgb, distance_rgb
 from app.ui.robot_view import wxyz
+from core.params import MappingParams
 from core.robot.model import RobotModel
 from core.types import MappedObject, ObjectStatus
 
-NOT_A_BOX_M = 1.6
-"""Objects longer than this are drawn as their points, not a box (the mapping registers only shorter ones
-as movable boxes: `MappingParams.registration_max_extent_m`)."""
 
+@dataclass(frozen=True)
+class DrawnObject:
+    """A mapped object as the view draws it: its centre (m, rounded to mm) and its label."""
 
-def _box_like(obj: MappedObject) -> bool:
-    return float(np.max(obj.extent[:2])) <= NOT_A_BOX_M or len(obj.points) == 0
+    position: tuple[float, float, float]
+    label: str
 
 
 class MapView:
     """Scene nodes under `/map`; toggles decide which layers are sent."""
 
-    def __init__(self, server: viser.ViserServer, robot: RobotModel) -> None:
+    def __init__(self, server: viser.ViserServer, robot: RobotModel, mapping: MappingParams | None = None) -> None:
+        """`mapping`: the map's tunables (its removal threshold colours the objects; default: the defaults)."""
         self.server = server
         self.robot = robot
+        self.mapping = mapping or MappingParams()
         self.show = {"objects": True, "voxels": False, "edf": False, "spheres": False, "frusta": True,
                      "clouds": False}
-        self._objects: dict[int, tuple[tuple, viser.BoxHandle, viser.LabelHandle]] = {}
+        self._objects: dict[int, tuple[tuple, viser.BoxHandle | viser.PointCloudHandle, viser.LabelHandle]] = {}
         self._last_seen: dict[int, MappedObject] = {}
-        self._layers: dict[str, object] = {}
+        self._layers: dict[str, viser.SceneNodeHandle] = {}
         sphere = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
         self._sphere_mesh = (np.asarray(sphere.vertices, np.float32), np.asarray(sphere.faces, np.uint32))
 
@@ -46,6 +50,14 @@ class MapView:
             handle = self._layers.pop(name, None)
             if handle is not None:
                 handle.remove()
+
+    def drawn_objects(self) -> dict[int, DrawnObject]:
+        """The objects drawn now, by id (removed ones stay, grey and labelled, at their last known pose)."""
+        return {i: DrawnObject(key[0], label.text) for i, (key, _, label) in self._objects.items()}
+
+    def _box_like(self, obj: MappedObject) -> bool:
+        """Drawn as a box; objects longer than the map registers as movable boxes are drawn as their points."""
+        return float(np.max(obj.extent[:2])) <= self.mapping.registration_max_extent_m or len(obj.points) == 0
 
     def _clear_objects(self) -> None:
         for _, box, label in self._objects.values():
@@ -94,8 +106,8 @@ class MapView:
             if old is not None:
                 old[1].remove()
                 old[2].remove()
-            color = (150, 150, 150) if removed else consistency_rgb(obj.consistency)
-            if _box_like(obj):
+            color = (150, 150, 150) if removed else consistency_rgb(obj.consistency, self.mapping.theta_stat)
+            if self._box_like(obj):
                 box = self.server.scene.add_box(f"/map/objects/{obj.id}", color=color,
                                                 dimensions=tuple(np.asarray(obj.extent) + 0.02), wireframe=True,
                                                 position=obj.pose[:3, 3], wxyz=wxyz(obj.pose[:3, :3]))

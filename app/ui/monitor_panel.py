@@ -18,7 +18,7 @@ PLOT_PERIOD_S = 0.5
 _COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b")
 
 
-def _finite(a: np.ndarray) -> np.ndarray:
+def _finite(a: np.typing.ArrayLike) -> np.ndarray:
     """NaN forward-filled (leading NaN → 0): one NaN makes viser's uPlot draw nothing at all."""
     a = np.asarray(a, float).copy()
     bad = ~np.isfinite(a)
@@ -31,7 +31,7 @@ def _finite(a: np.ndarray) -> np.ndarray:
     return a
 
 
-LEGEND = {"live": False}
+LEGEND = uplot.Legend(live=False)
 """The legend names the series; uPlot's live legend shows each value under the cursor, '--' until hovered."""
 
 
@@ -47,7 +47,10 @@ class MonitorPanel:
     def __init__(self, server: viser.ViserServer) -> None:
         self.server = server
         self.rows: deque[tuple] = deque(maxlen=HISTORY)
-        self.solve = self.errors = self.clearance = self.consistency = None
+        self.solve: viser.GuiUplotHandle | None = None
+        self.errors: viser.GuiUplotHandle | None = None
+        self.clearance: viser.GuiUplotHandle | None = None
+        self.consistency: viser.GuiUplotHandle | None = None
         self._obj_ids: list[int] = []
         self._last_plot = 0.0
 
@@ -57,18 +60,14 @@ class MonitorPanel:
         scales = {"x": uplot.Scale(time=False, auto=True)}
         empty = (np.zeros(1), np.zeros(1), np.zeros(1))
         self.solve = server.gui.add_uplot(empty, _series(["solve ms", "map ms"]), title="Solve / mapping time (ms)",
-                                          scales=scales, aspect=2.0,
-                                          legend=LEGEND)
+                                          scales=scales, aspect=2.0, legend=LEGEND)
         self.errors = server.gui.add_uplot(empty, _series(["level 1", "level 2"]), title="Task error per level",
-                                           scales=scales, aspect=2.0,
-                                          legend=LEGEND)
+                                           scales=scales, aspect=2.0, legend=LEGEND)
         self.clearance = server.gui.add_uplot((np.zeros(1), np.zeros(1)), _series(["min distance (m)"]),
-                                              title="Robot–box distance (m)", scales=scales, aspect=2.0,
-                                          legend=LEGEND)
+                                              title="Robot–box distance (m)", scales=scales, aspect=2.0, legend=LEGEND)
         obj_empty = tuple(np.zeros(1) for _ in range(MAX_OBJECTS + 1))
         self.consistency = server.gui.add_uplot(obj_empty, _series([f"obj {i}" for i in range(MAX_OBJECTS)]),
-                                                title="E[v] per object", scales=scales, aspect=2.0,
-                                          legend=LEGEND)
+                                                title="E[v] per object", scales=scales, aspect=2.0, legend=LEGEND)
 
     def load_history(self, snapshots: list[Snapshot]) -> None:
         """Start the plots over from these snapshots (a replay jumped in time); the next update draws them."""
@@ -99,6 +98,8 @@ class MonitorPanel:
                           [ev.get(i, np.nan) for i in self._obj_ids] + [np.nan] * (MAX_OBJECTS - len(self._obj_ids))))
 
     def _plot(self) -> None:
+        if self.solve is None or self.errors is None or self.clearance is None or self.consistency is None:
+            return
         cols = list(zip(*self.rows, strict=True))
         t = np.asarray(cols[0], float)
         self.solve.data = (t, _finite(cols[1]), _finite(cols[2]))

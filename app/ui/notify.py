@@ -9,10 +9,12 @@ from typing import Any
 
 import viser
 
+from app.ui.colors import NamedColour
+
 log = logging.getLogger(__name__)
 
 
-def notify_all(server: viser.ViserServer, title: str, body: str, color: str = "red") -> None:
+def notify_all(server: viser.ViserServer, title: str, body: str, color: NamedColour = "red") -> None:
     """Show a notification in every connected browser."""
     for client in server.get_clients().values():
         try:

@@ -11,8 +11,9 @@ import viser
 from app.snapshot import RunState, Snapshot
 from app.target_check import nearest_obstacle, snapshot_obstacles
 from app.ui import glyphs
+from app.ui.colors import NamedColour
 from app.ui.notify import notify_all
-from tasks.sequencer import SubtaskProgress
+from tasks.sequencer import GoalShift, SubtaskProgress
 
 ETA_WINDOW_S = 3.0
 """The time left of the active subtask is its remaining error over the rate it fell in this window."""
@@ -23,6 +24,9 @@ def duration(seconds: float) -> str:
     seconds = max(0.0, float(seconds))
     return f"{seconds:.0f} s" if seconds < 60 else f"{int(seconds // 60)} min {int(seconds % 60):02d} s"
 
+
+BAR_COLOURS: dict[RunState, NamedColour] = {RunState.FAILED: "red", RunState.ESTOP: "red", RunState.FINISHED: "green"}
+"""The progress bar's colour by run state (blue otherwise)."""
 
 class ProgressPanel:
     """Markdown and a progress bar at the top of the sidebar (always visible)."""
@@ -41,8 +45,7 @@ class ProgressPanel:
     def update(self, snap: Snapshot) -> None:
         self.status.content = self._status(snap)
         self.bar.value = round(100.0 * self._fraction(snap), 1)
-        self.bar.color = {RunState.FAILED: "red", RunState.ESTOP: "red", RunState.FINISHED: "green"}.get(
-            snap.run_state, "blue")
+        self.bar.color = BAR_COLOURS.get(snap.run_state, "blue")
         self.time_left.content = self._time_left(snap)
         self.subtasks.content = self._list(snap)
         self._announce_goal_shifts(snap)
@@ -104,8 +107,7 @@ class ProgressPanel:
         return (f"subtask {active.index + 1}/{len(progress)}: {left} ({active.position_error_m:.2f} m to go)"
                 f"{timeout}{after}")
 
-    def _shift_text(self, p: SubtaskProgress, snap: Snapshot) -> str:
-        shift = p.goal_shift
+    def _shift_text(self, shift: GoalShift, snap: Snapshot) -> str:
         box = nearest_obstacle(np.array(shift.original), snapshot_obstacles(snap))
         return f"goal moved {shift.distance_m:.2f} m to clear {box or 'an obstacle'}"
 
@@ -113,7 +115,7 @@ class ProgressPanel:
         lines = []
         for p in snap.progress:
             mark = glyphs.OUTCOME.get(p.outcome.value, "·")
-            message = self._shift_text(p, snap) if p.goal_shift is not None else p.message
+            message = self._shift_text(p.goal_shift, snap) if p.goal_shift is not None else p.message
             lines.append(f"{mark} {p.index + 1}. {p.name}" + (f" — {message}" if message else ""))
         return "  \n".join(lines) or "_no subtasks_"
 
@@ -124,5 +126,5 @@ class ProgressPanel:
             key = (snap.sequence_version, p.index, tuple(np.round(p.goal_shift.driven, 2)))
             if key not in self._announced:
                 self._announced.add(key)
-                notify_all(self.server, f"Subtask {p.index + 1}: goal moved", self._shift_text(p, snap),
+                notify_all(self.server, f"Subtask {p.index + 1}: goal moved", self._shift_text(p.goal_shift, snap),
                            color="yellow")

@@ -7,10 +7,13 @@ from functools import cache
 
 import numpy as np
 import trimesh
+import trimesh.visual
 import viser
+import viser.transforms as vtf
 
 from core.robot.model import RobotModel
 from core.robot.ur10_assets import ARM_LINKS, ur10_mesh
+from core.types import vec3
 
 log = logging.getLogger(__name__)
 
@@ -21,13 +24,15 @@ def _link_mesh(link: str, kind: str = "collision") -> trimesh.Trimesh:
     'visual' (116k triangles)."""
     loaded = trimesh.load(ur10_mesh(link, kind))
     mesh = loaded.to_geometry() if isinstance(loaded, trimesh.Scene) else loaded
+    if not isinstance(mesh, trimesh.Trimesh):
+        raise TypeError(f"{ur10_mesh(link, kind)} holds no triangle mesh")
     mesh.visual = trimesh.visual.ColorVisuals(mesh, face_colors=(150, 160, 175, 255))
     return mesh
 
 
 def wxyz(R: np.ndarray) -> np.ndarray:
     """Unit quaternion (w, x, y, z) of a rotation matrix."""
-    return viser.transforms.SO3.from_matrix(R).wxyz
+    return vtf.SO3.from_matrix(R).wxyz
 
 
 class RobotView:
@@ -43,7 +48,7 @@ class RobotView:
             if link == "mobile_base":
                 for box, colour in zip(robot.boxes, ((45, 45, 50), (60, 60, 66)), strict=True):
                     server.scene.add_box(f"{name}/{link}/{box.name}", color=colour,
-                                         dimensions=tuple(2 * h for h in box.half_m), position=box.centre_m)
+                                         dimensions=vec3(2 * h for h in box.half_m), position=box.centre_m)
             elif link in ARM_LINKS:
                 server.scene.add_mesh_trimesh(f"{name}/{link}/mesh", _link_mesh(link, meshes))
 

@@ -2,17 +2,29 @@
 
 from __future__ import annotations
 
+from typing import TypeVar
+
 import viser
 
-from app.runtime import MAP_KINDS, Runtime
+from app.replay import ReplaySource
+from app.runtime import CONSTRAINT_KINDS, MAP_KINDS, Runtime
 from app.snapshot import RunState, Snapshot
 from app.ui.notify import guarded
 
+T = TypeVar("T")
+
+
+def _choice(value: str, options: tuple[T, ...]) -> T:
+    """A dropdown's value as the option it is (a replay's dropdown shows 'replay', which is none)."""
+    for option in options:
+        if option == value:
+            return option
+    raise ValueError(f"{value!r} is not one of {', '.join(map(str, options))}")
 
 class RunPanel:
     """The 'Run' folder; the emergency stop is a red button and the Escape hotkey."""
 
-    def __init__(self, server: viser.ViserServer, runtime: Runtime) -> None:
+    def __init__(self, server: viser.ViserServer, runtime: Runtime | ReplaySource) -> None:
         self.server, self.runtime = server, runtime
         with server.gui.add_folder("Run"):
             self.estop = server.gui.add_button("EMERGENCY STOP (Esc)", color="red", icon=viser.Icon.HAND_STOP,
@@ -21,16 +33,18 @@ class RunPanel:
             self.speed = server.gui.add_slider("Speed (×)", min=0.1, max=4.0, step=0.1,
                                                initial_value=runtime.config.speed)
             self.map_kind = server.gui.add_dropdown("Map", MAP_KINDS, initial_value=runtime.config.map_kind)
-            self.constraint = server.gui.add_dropdown("Constraint", ("cbf", "edf"),
+            self.constraint = server.gui.add_dropdown("Constraint", CONSTRAINT_KINDS,
                                                       initial_value=runtime.config.constraint)
         command = server.gui.add_command("Emergency stop", description="Zero velocity now", hotkey="escape")
         command.on_trigger(lambda _: self._estop())
         self.estop.on_click(lambda _: self._estop())
         self.buttons.on_click(guarded(server, "run control")(lambda e: self._control(e.target.value)))
         self.speed.on_update(guarded(server, "speed")(lambda _: runtime.set_speed(self.speed.value)))
-        self.map_kind.on_update(guarded(server, "map kind")(lambda _: runtime.configure(map_kind=self.map_kind.value)))
+        self.map_kind.on_update(guarded(server, "map kind")(
+            lambda _: runtime.configure(map_kind=_choice(self.map_kind.value, MAP_KINDS))))
         self.constraint.on_update(
-            guarded(server, "constraint kind")(lambda _: runtime.configure(constraint=self.constraint.value)))
+            guarded(server, "constraint kind")(
+                lambda _: runtime.configure(constraint=_choice(self.constraint.value, CONSTRAINT_KINDS))))
 
     def hide_controls(self) -> None:
         """A replay has its own playback controls (`TimelinePanel`); map and constraint are the recorded ones."""

@@ -12,12 +12,15 @@ import math
 import numpy as np
 import viser
 
+from app.replay import ReplaySource
 from app.runtime import Runtime
 from app.snapshot import Snapshot
 from app.ui.notify import guarded, notify_all
 from core.sim.scene import Box, parse_scene, scene_to_yaml
+from core.types import vec3
 
-NONE = "(none)"
+NONE: str = "(none)"
+"""The dropdown entry that selects nothing."""
 GIZMO_LIFT_M = 0.15
 """The gizmo sits this far above the top of the selected box."""
 
@@ -30,7 +33,7 @@ def _yaw_of(wxyz: np.ndarray) -> float:
 class ScenePanel:
     """The 'Scene' folder and the box gizmo under `/scene/gizmo`."""
 
-    def __init__(self, server: viser.ViserServer, runtime: Runtime) -> None:
+    def __init__(self, server: viser.ViserServer, runtime: Runtime | ReplaySource) -> None:
         self.server, self.runtime = server, runtime
         self._box_ids: tuple[str, ...] = ()
         self._boxes: dict[str, Box] = {b.id: b for b in runtime.snapshot().boxes}
@@ -85,7 +88,7 @@ class ScenePanel:
         if self._syncing or self.selected is None:
             return
         centre = np.asarray(self.gizmo.position) - self._lift(self.selected)
-        box = self.runtime.move_box(self.selected, tuple(float(v) for v in centre),
+        box = self.runtime.move_box(self.selected, vec3(centre),
                                     _yaw_of(np.asarray(self.gizmo.wxyz)))
         self._boxes[box.id] = box
         self._show_pose(box, move_gizmo=False)  # the gizmo is where the user drags it
@@ -119,7 +122,7 @@ class ScenePanel:
         if self.selected is None:
             raise ValueError("select a box first")
         try:
-            box = self.runtime.move_box(self.selected, tuple(self.position.value), math.radians(self.yaw.value))
+            box = self.runtime.move_box(self.selected, vec3(self.position.value), math.radians(self.yaw.value))
             self._boxes[box.id] = box
         finally:
             self._on_select()  # show where the box really is (unchanged if the move was refused)
@@ -127,8 +130,8 @@ class ScenePanel:
     def _on_action(self, action: str) -> None:
         if action == "Add":
             q = self.runtime.state.q
-            size = tuple(float(s) for s in self.size.value)
-            ahead = (q[0] + 2.0 * math.cos(q[2]), q[1] + 2.0 * math.sin(q[2]), size[2] / 2)
+            size = vec3(self.size.value)
+            ahead = vec3((q[0] + 2.0 * math.cos(q[2]), q[1] + 2.0 * math.sin(q[2]), size[2] / 2))
             self._counter += 1
             box_id = f"new_{self._counter}"
             while box_id in self._box_ids:

@@ -39,8 +39,9 @@ class SceneView:
                     old[1].remove()
                 colour = DARK_BOX_RGB if box.dark else BOX_RGB
                 handle = self.server.scene.add_box(f"/scene/boxes/{box_id}", color=colour, dimensions=box.size)
-                if self.on_click is not None:
-                    handle.on_click(lambda _, box_id=box_id: self.on_click(box_id))
+                on_click = self.on_click
+                if on_click is not None:
+                    handle.on_click(lambda _, box_id=box_id, on_click=on_click: on_click(box_id))
             handle.position = box.position
             handle.wxyz = (math.cos(box.yaw / 2), 0.0, 0.0, math.sin(box.yaw / 2))
             self._nodes[box_id] = (box, handle)

@@ -48,7 +48,7 @@ DETAILED_VIEW = ViewSettings(robot_meshes="visual", shadows=True, environment_ma
 class Studio:
     """Binds one viser server to one runtime."""
 
-    def __init__(self, runtime: Runtime, host: str = "127.0.0.1", port: int = 8080,
+    def __init__(self, runtime: Runtime | ReplaySource, host: str = "127.0.0.1", port: int = 8080,
                  require_token: bool = False, view: ViewSettings = ViewSettings()) -> None:
         """`require_token`: the page needs the printed access link even on this machine (a real robot);
         listening beyond this machine always needs it (`app.ui.access`)."""
@@ -71,7 +71,7 @@ class Studio:
         self._latest: Snapshot | None = None
         self._messages: list[str] = []
         self.robot_view = RobotView(self.server, runtime.robot, meshes=view.robot_meshes)
-        self.map_view = MapView(self.server, runtime.robot)
+        self.map_view = MapView(self.server, runtime.robot, runtime.config.mapping)
         self.plan_view = PlanView(self.server)
         self.progress = ProgressPanel(self.server)
         self.problems = ProblemsPanel(self.server)

@@ -37,7 +37,14 @@ import numpy as np
 
 from app.runtime import Runtime
 from bench.experiments.measures import PhantomCount, box_in_view, in_view, phantoms, run_metrics, solver_figures
-from bench.experiments.report_files import fmt, md_table, rate, save_figure, stat, write_json, write_markdown
+from bench.experiments.report_files import (
+    finish_experiment,
+    md_table,
+    rate,
+    save_figure,
+    stat,
+    write_markdown,
+)
 from bench.experiments.trials import Trial, experiment_args, quiet_logs, runtime_config, trial_results, tunables
 from core.sim.scene import Box, random_scene
 from tasks import BasePose, BaseSubtask, TaskSequence
@@ -246,14 +253,16 @@ def report(results: list[dict], figures: dict[str, float], pngs: list[str], out_
         if f"{kind}_trials" not in figures:
             continue
         rows.append([kind, int(figures[f"{kind}_trials"]), figures[f"{kind}_phantoms_at_leg2_start_mean"],
-                     figures[f"{kind}_phantoms_at_end_mean"], figures[f"{kind}_phantoms_cleared_after_s_median"],
+                     figures[f"{kind}_phantoms_at_end_mean"], figures[f"{kind}_phantoms_cleared_rate"],
+                     figures[f"{kind}_phantoms_cleared_after_s_median"],
                      figures[f"{kind}_leg2_success_rate"], figures[f"{kind}_leg2_first_plan_m_median"],
                      figures[f"{kind}_leg2_path_m_median"], figures[f"{kind}_leg2_time_s_median"],
                      figures[f"{kind}_collision_free_rate"], figures[f"{kind}_odometry_error_m_at_end_median"],
                      figures[f"{kind}_odometry_error_rad_at_end_median"]])
     summary = md_table(["map", "scenes", "phantoms at leg-2 start (mean)", "phantoms at end (mean)",
-                        "all cleared after (s, median)", "leg 2 reached", "leg-2 first plan (m, median)",
-                        "leg-2 path (m, median)", "leg-2 time (s, median)", "collision-free",
+                        "all cleared (share of scenes)", "… after (s, median of those)", "leg 2 reached",
+                        "leg-2 first plan (m, median)", "leg-2 path (m, median)", "leg-2 time (s, median of reached)",
+                        "collision-free",
                         "odometry error at end (m, median)", "(rad, median)"], rows)
     extra = []
     for kind in ("object", "voxel"):
@@ -288,14 +297,10 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     for r in results:
         r["phantoms_cleared_after_s_finite"] = math.isfinite(r.get("phantoms_cleared_after_s", math.nan))
     figures = summarise(results)
-    args.out.mkdir(parents=True, exist_ok=True)
-    pngs = figures_png(results, args.out)
     settings = {"seeds": seeds, "maps": list(maps), "band_m": BAND_M, "store_y_m": STORE_Y_M,
                 "leg_timeout_s": LEG_TIMEOUT_S, "paper": PAPER, "sensor_model": asdict(tunables().sim.sensor)}
-    write_json(args.out, NAME, settings, figures, results, args.quick)
-    report(results, figures, pngs, args.out, args.quick)
-    print("\n".join(f"{k}: {fmt(v)}" for k, v in figures.items()))
-    return figures
+    return finish_experiment(args, NAME, results, figures, settings, lambda out: figures_png(results, out),
+                             lambda pngs: report(results, figures, pngs, args.out, args.quick))
 
 
 if __name__ == "__main__":

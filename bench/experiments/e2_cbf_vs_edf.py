@@ -40,7 +40,14 @@ import numpy as np
 
 from app.runtime import Runtime
 from bench.experiments.measures import NEAR_OBSTACLE_M, run_metrics, solver_figures
-from bench.experiments.report_files import fmt, md_table, rate, save_figure, stat, write_json, write_markdown
+from bench.experiments.report_files import (
+    finish_experiment,
+    md_table,
+    rate,
+    save_figure,
+    stat,
+    write_markdown,
+)
 from bench.experiments.trials import Trial, experiment_args, quiet_logs, runtime_config, trial_results, tunables
 from core.params import MappingParams
 from core.sim.scene import random_scene
@@ -76,10 +83,11 @@ def trial(params: dict) -> dict:
         BaseSubtask(name="to the goal", target=BasePose(x=scene.goal[0], y=scene.goal[1], yaw_deg=0.0),
                     timeout_s=TIMEOUT_S)])
     perception_s, actuation_s = DELAYS_S.get(params["map"], (0.0, 0.0))
-    cfg = runtime_config(map_kind=MAP_KIND[params["map"]], constraint=params["constraint"], seed=params["seed"],
+    cfg = runtime_config(map_kind=MAP_KIND[params["map"]], seed=params["seed"],
                          perception_delay_s=perception_s, actuation_delay_s=actuation_s,
                          mapping=MAPPING.get(params["map"], tunables().mapping),
-                         htmpc=replace(tunables().htmpc, gamma=params["gamma"]),
+                         htmpc=replace(tunables().htmpc, constraint=params["constraint"],
+                                       gamma=params["gamma"]),
                          sequencer=replace(tunables().sequencer, nominal_speed_mps=params["speed"],
                                            inflation_m=tunables().robot.footprint_radius_m))
     rt = Runtime(cfg, scene=scene, sequence=seq)
@@ -270,18 +278,17 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     trials = main_trials(seeds, speeds, maps) + gamma_trials(seeds, gammas, gamma_speed)
     results = trial_results(args, NAME, trials, "E2 scenes × speeds × maps × constraints")
     figures = summarise(results, speeds, gamma_speed)
-    args.out.mkdir(parents=True, exist_ok=True)
-    pngs = figures_png(results, speeds, gamma_speed, args.out)
     settings = {"seeds": seeds, "speeds_mps": list(speeds), "maps": list(maps), "constraints": list(CONSTRAINTS),
                 "gammas": list(gammas), "gamma_sweep_speed_mps": gamma_speed,
                 "delta_safe_m": tunables().htmpc.delta_safe_m, "timeout_s": TIMEOUT_S, "paper": PAPER,
                 "sensor_model": asdict(tunables().sim.sensor)}
-    write_json(args.out, NAME, settings, figures, results, args.quick)
     options = " ".join(([f"--maps {' '.join(maps)}"] if maps != MAPS else [])
                        + (["--no-sweep"] if args.no_sweep else []))
-    report(results, figures, speeds, gamma_speed, pngs, args.out, args.quick, options)
-    print("\n".join(f"{k}: {fmt(v)}" for k, v in figures.items() if "mps_" not in k))
-    return figures
+    return finish_experiment(args, NAME, results, figures, settings,
+                             lambda out: figures_png(results, speeds, gamma_speed, out),
+                             lambda pngs: report(results, figures, speeds, gamma_speed, pngs, args.out, args.quick,
+                                                 options),
+                             show=lambda key: "mps_" not in key)
 
 
 if __name__ == "__main__":

@@ -46,7 +46,15 @@ from bench.experiments.measures import (
     solver_figures,
     solver_metrics,
 )
-from bench.experiments.report_files import fmt, md_table, rate, save_figure, stat, write_json, write_markdown
+from bench.experiments.report_files import (
+    finish_experiment,
+    fmt,
+    md_table,
+    rate,
+    save_figure,
+    stat,
+    write_markdown,
+)
 from bench.experiments.trials import Trial, experiment_args, quiet_logs, runtime_config, trial_results, tunables
 from core.sim.scene import PAPER_BOX_M, Box, Scene
 from core.sim.world import CollisionEvent, SceneEditError
@@ -79,9 +87,10 @@ PAPER = {"ee_min_avoided_m": 0.6, "base_min_avoided_m": 1.48, "bound_m": 0.5, "c
 
 def _config(map_kind: str, seed: int):
     perception, actuation = DELAYS[map_kind]
-    return runtime_config(map_kind=map_kind, constraint="cbf", seed=seed, perception_delay_s=perception,
+    return runtime_config(map_kind=map_kind, seed=seed, perception_delay_s=perception,
                           actuation_delay_s=actuation,
-                          htmpc=replace(tunables().htmpc, gamma=GAMMA, delta_safe_m=DELTA_M),
+                          htmpc=replace(tunables().htmpc, constraint="cbf", gamma=GAMMA,
+                                        delta_safe_m=DELTA_M),
                           sequencer=replace(tunables().sequencer, nominal_speed_mps=SPEED_MPS,
                                             inflation_m=tunables().robot.footprint_radius_m))
 
@@ -378,15 +387,11 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     args = experiment_args(NAME, __doc__.splitlines()[0], argv)
     results = trial_results(args, NAME, build_trials(args.quick), "E3 pushes")
     figures = summarise(results)
-    args.out.mkdir(parents=True, exist_ok=True)
-    pngs = figures_png(results, args.out)
     settings = {"speed_mps": SPEED_MPS, "gamma": GAMMA, "delta_m": DELTA_M, "delays_s": DELAYS,
                 "sweep_m": list(SWEEP_M), "random_trials": RANDOM_TRIALS, "push_distance_m": PUSH_DISTANCE_M,
                 "push_lateral_m": PUSH_LATERAL_M, "paper": PAPER}
-    write_json(args.out, NAME, settings, figures, results, args.quick)
-    report(results, figures, pngs, args.out, args.quick)
-    print("\n".join(f"{k}: {fmt(v)}" for k, v in figures.items()))
-    return figures
+    return finish_experiment(args, NAME, results, figures, settings, lambda out: figures_png(results, out),
+                             lambda pngs: report(results, figures, pngs, args.out, args.quick))
 
 
 if __name__ == "__main__":

@@ -37,7 +37,13 @@ import numpy as np
 from app.runtime import Runtime
 from app.snapshot import RunState
 from bench.experiments.measures import box_in_view, phantoms, run_metrics, solver_figures
-from bench.experiments.report_files import draw_boxes, fmt, md_table, save_figure, write_json, write_markdown
+from bench.experiments.report_files import (
+    draw_boxes,
+    finish_experiment,
+    md_table,
+    save_figure,
+    write_markdown,
+)
 from bench.experiments.trials import Trial, experiment_args, quiet_logs, runtime_config, trial_results
 from core.sim.scene import PAPER_BOX_M, Box, Scene, aisle_scene
 from tasks import BasePose, BaseSubtask, EEPose, EESubtask, TaskSequence, Tolerance
@@ -317,16 +323,12 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     args = experiment_args(NAME, __doc__.splitlines()[0], argv)
     results = trial_results(args, NAME, build_trials(args.quick), "E4 runs")
     figures = summarise(results)
-    args.out.mkdir(parents=True, exist_ok=True)
-    pngs = figures_png(results, args.out)
     settings = {"aisle_m": AISLE_M, "laps": 1 if args.quick else LAPS, "spots": SPOTS, "loose_boxes": LOOSE,
                 "change_at_subtask": change_points(1 if args.quick else LAPS),
                 "layouts": layouts(SEED, len(change_points(1 if args.quick else LAPS)) + 1), "seed": SEED,
                 "paper": PAPER}
-    write_json(args.out, NAME, settings, figures, results, args.quick)
-    report(results, pngs, args.out, args.quick)
-    print("\n".join(f"{k}: {fmt(v)}" for k, v in figures.items()))
-    return figures
+    return finish_experiment(args, NAME, results, figures, settings, lambda out: figures_png(results, out),
+                             lambda pngs: report(results, pngs, args.out, args.quick))
 
 
 if __name__ == "__main__":

@@ -2,16 +2,20 @@
 
 The JSON holds the run's settings, the machine, the commit, every trial's result and the summary
 figures; the markdown puts our figures beside the paper's (docs/method.md, "What the paper measured").
+The commit is the one the trials ran on, flagged '+dirty' when the code differed from it; a report rewritten
+with `--report-only` keeps the run's commit and names its own beside it.
 """
 
 from __future__ import annotations
 
+import argparse
 import datetime as dt
 import json
 import logging
 import math
 import subprocess
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import matplotlib
@@ -30,16 +34,40 @@ log = logging.getLogger(__name__)
 
 
 def git_commit() -> str:
-    """The checkout's HEAD commit (with '+dirty' when tracked files other than the reports differ: a report
-    written by an earlier experiment of the same checkout is not a change to the code), or 'unknown'."""
+    """The checkout's HEAD commit (with '+dirty' when files other than the reports differ from it, new
+    files not ignored included: a report written by an earlier experiment of the same checkout is not a
+    change to the code), or 'unknown'."""
     try:
         head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True,
                               timeout=10).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", ".", ":!reports"],
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=normal", "--", ".", ":!reports"],
                                cwd=ROOT, capture_output=True, text=True, timeout=10).stdout.strip()
     except (OSError, subprocess.TimeoutExpired):
         return "unknown"
     return f"{head}+dirty" if dirty else (head or "unknown")
+
+
+@dataclass(frozen=True)
+class RunStamp:
+    """Where and when an experiment's trials ran."""
+
+    commit: str
+    when: str
+    machine: dict
+
+    @classmethod
+    def now(cls) -> RunStamp:
+        return cls(git_commit(), dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"), machine())
+
+    @classmethod
+    def saved(cls, out_dir: Path, name: str) -> RunStamp:
+        """The stamp of the run saved in `<out_dir>/<name>.json` (what `--report-only` reports on)."""
+        data = json.loads((out_dir / f"{name}.json").read_text(encoding="utf-8"))
+        return cls(data.get("commit", "unknown"), data.get("when", "unknown"), data.get("machine", {}))
+
+    @property
+    def dirty(self) -> bool:
+        return self.commit.endswith("+dirty") or self.commit == "unknown"
 
 
 def _clean(value):
@@ -60,15 +88,19 @@ def _clean(value):
 
 
 def write_json(out_dir: Path, name: str, settings: dict, figures: dict, trials: list[dict],
-               quick: bool, extra: dict | None = None) -> Path:
-    """`<out_dir>/<name>.json`: settings, machine, commit, summary figures and every trial."""
+               quick: bool, extra: dict | None = None, stamp: RunStamp | None = None) -> Path:
+    """`<out_dir>/<name>.json`: settings, machine, commit (of the run: `stamp`, default now), summary figures
+    and every trial."""
     out_dir.mkdir(parents=True, exist_ok=True)
+    stamp = stamp or RunStamp.now()
+    if stamp.dirty:
+        log.warning("%s: the trials ran on %s: uncommitted changes, the report says so", name, stamp.commit)
     payload = {
         "experiment": name,
-        "when": dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "when": stamp.when,
         "quick": quick,
-        "commit": git_commit(),
-        "machine": machine(),
+        "commit": stamp.commit,
+        "machine": stamp.machine,
         "settings": settings,
         "figures": figures,
         "trials": [{k: v for k, v in t.items() if k != "traceback"} for t in trials],
@@ -102,13 +134,22 @@ def md_table(headers: Sequence[str], rows: Iterable[Sequence]) -> str:
 
 def write_markdown(out_dir: Path, name: str, title: str, sections: list[tuple[str, str]], quick: bool,
                    options: str = "") -> Path:
-    """`<out_dir>/README.md`: title, the command that made it (with `options` beyond --quick), then (heading,
-    body) sections."""
+    """`<out_dir>/README.md`: title, the command that made it (with `options` beyond --quick) and the run's
+    commit and machine (from `<name>.json` beside it), then (heading, body) sections."""
     command = f"python -m bench.experiments.{name}{' --quick' if quick else ''}{' ' + options if options else ''}"
+    stamp = RunStamp.saved(out_dir, name)
+    when = stamp.when.replace("T", " ")
+    cpu, cores = stamp.machine.get("cpu", "unknown CPU"), stamp.machine.get("cores", "?")
     head = [f"# {title}", "",
             f"Made by `{command}`{' (quick smoke variant: few trials, not the full figures)' if quick else ''} "
-            f"on commit `{git_commit()}`, {dt.datetime.now(dt.UTC).strftime('%Y-%m-%d %H:%M UTC')}, "
-            f"{machine()['cpu']} ({machine()['cores']} cores). Simulated, lockstep, seeds fixed.", ""]
+            f"on commit `{stamp.commit}`, {when[:16]} UTC, {cpu} ({cores} cores). Simulated, lockstep, seeds fixed."]
+    if stamp.dirty:
+        head.append(f"**The code had uncommitted changes** (`{stamp.commit}`): these figures may not come from "
+                    "that commit.")
+    report_commit = git_commit()
+    if report_commit != stamp.commit:
+        head.append(f"This report was rewritten from those trials (`--report-only`) on commit `{report_commit}`.")
+    head.append("")
     body = [f"## {h}\n\n{b.strip()}\n" for h, b in sections]
     path = out_dir / "README.md"
     write_text_atomic(path, "\n".join(head + body))
@@ -145,3 +186,18 @@ def stat(trials: list[dict], key: str, how: str = "median") -> float:
     if not len(vals):
         return math.nan
     return float({"median": np.median, "mean": np.mean, "min": np.min, "max": np.max}[how](vals))
+
+
+def finish_experiment(args: argparse.Namespace, name: str, results: list[dict], figures: dict[str, float],
+                      settings: dict, draw: Callable[[Path], list[str]], write: Callable[[list[str]], None],
+                      show: Callable[[str], bool] = lambda key: True) -> dict[str, float]:
+    """The end every experiment's `main` shares: figures drawn into `args.out` (`draw` returns the PNG names),
+    `<name>.json` with the run's stamp (the saved run's for `--report-only`), the markdown (`write(pngs)`),
+    and the figures `show` selects printed. Returns the figures."""
+    stamp = RunStamp.saved(args.out, name) if args.report_only else RunStamp.now()
+    args.out.mkdir(parents=True, exist_ok=True)
+    pngs = draw(args.out)
+    write_json(args.out, name, settings, figures, results, args.quick, stamp=stamp)
+    write(pngs)
+    print("\n".join(f"{k}: {fmt(v)}" for k, v in figures.items() if show(k)))
+    return figures

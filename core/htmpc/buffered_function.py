@@ -56,11 +56,12 @@ class BufferedFunction:
         self._bind()
 
     def _bind(self) -> None:
+        # casadi's SWIG signatures also list the buffer's size, which its typemap takes from the memoryview
         ins, outs = self._views
         for i, view in enumerate(ins):
-            self._buffer.set_arg(i, view)
+            self._buffer.set_arg(i, view)  # pyright: ignore[reportCallIssue, reportArgumentType]
         for i, view in enumerate(outs):
-            self._buffer.set_res(i, view)
+            self._buffer.set_res(i, view)  # pyright: ignore[reportCallIssue, reportArgumentType]
 
     def evaluate(self) -> int:
         """Run the function on the current inputs; returns casadi's return flag (0 = fine)."""

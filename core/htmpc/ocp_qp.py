@@ -25,10 +25,12 @@ import casadi as ca
 import numpy as np
 
 from core.htmpc.buffered_function import BufferedFunction
+from core.types import NQ
 
 log = logging.getLogger(__name__)
 
-NQ, NX = 9, 18
+NX = 2 * NQ
+"""The state of the double integrator: x = [q, v]."""
 HPIPM_OPTIONS = {"mode": "speed_abs", "res_g_max": 1e-6, "res_b_max": 1e-6, "res_d_max": 1e-6, "res_m_max": 1e-6,
                  "iter_max": 60, "warm_start": 1}
 """`warm_start` 1: the interior point starts from the primal guess (the linearisation point, or the previous

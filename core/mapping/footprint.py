@@ -14,6 +14,7 @@ others are their surface, each occupied column filled down to the floor.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from scipy import ndimage
@@ -62,7 +63,7 @@ class Footprint:
         at = np.rint(self.origin / self.cell_m).astype(int) - lo
         occ = self.occupied
         free[at[0]:at[0] + occ.shape[0], at[1]:at[1] + occ.shape[1]] &= ~occ
-        gap = ndimage.distance_transform_edt(free) * self.cell_m
+        gap = cast(np.ndarray, ndimage.distance_transform_edt(free)) * self.cell_m
         n = np.maximum(np.ceil(2 * half / self.cell_m).astype(int), 1)
         u = (np.arange(n[0]) + 0.5) / n[0] * 2 * half[0] - half[0]
         v = (np.arange(n[1]) + 0.5) / n[1] * 2 * half[1] - half[1]

@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from scipy import ndimage
@@ -128,12 +129,12 @@ def depth_inside(occupied: np.ndarray) -> np.ndarray:
     the whole, mostly free grid.
     """
     out = np.zeros(occupied.shape)
-    labels, _ = ndimage.label(occupied)
+    labels, _ = cast(tuple[np.ndarray, int], ndimage.label(occupied))
     for region, block in enumerate(ndimage.find_objects(labels), start=1):
         grown = tuple(slice(max(b.start - 1, 0), min(b.stop + 1, n))
                       for b, n in zip(block, occupied.shape, strict=True))
         mask = labels[grown] == region
-        d = ndimage.distance_transform_edt(mask)
+        d = cast(np.ndarray, ndimage.distance_transform_edt(mask))
         out[grown] = np.where(mask, d, out[grown])
     return out
 
@@ -144,7 +145,7 @@ def signed_distance(occupied: np.ndarray, voxel: float, cutoff: float) -> np.nda
         return np.full(occupied.shape, cutoff)
     if occupied.all():
         return np.full(occupied.shape, -cutoff)
-    outside = ndimage.distance_transform_edt(~occupied) - 0.5
+    outside = cast(np.ndarray, ndimage.distance_transform_edt(~occupied)) - 0.5
     inside = depth_inside(occupied) - 0.5
     values = np.where(occupied, -inside, outside) * voxel
     return np.clip(values, -cutoff, cutoff)

@@ -63,14 +63,15 @@ from __future__ import annotations
 
 import logging
 import time
+import typing
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from core.mapping import association, consistency
 from core.mapping.completion import Completion
+from core.mapping.frame_association import FrameAssociation, Observed
 from core.mapping.local_edf import EDFGrid, local_edf, mark_boxes, mark_columns, mark_points
 from core.mapping.registration import align
 from core.mapping.scene_points import ScenePoints, latest_time
@@ -78,84 +79,13 @@ from core.mapping.segmentation import Segment, segment, voxelise
 from core.mapping.tracked_object import TrackedObject
 from core.mapping.visibility import HIT, THROUGH, FrameView, VisibilityCounts, count
 from core.mapping.world_map import TIMING_KEYS
-from core.params import MappingParams
+from core.params import EDFGeometry, MappingParams
 from core.robot.model import RobotModel
-from core.types import DepthFrame, LocalEDF, ObjectMapSnapshot, ObjectStatus, Observation, Posterior
+from core.types import DepthFrame, LocalEDF, ObjectMapSnapshot, ObjectStatus, Observation
 
 log = logging.getLogger(__name__)
 
-@dataclass
-class Observed:
-    """What one frame saw of a matched object: points (N×3, world), an even sample of them and the
-    sample's distances to the object (truncated at the association cap; the cost, the registration
-    trigger and Delta all use them, so they are computed once)."""
-
-    obj: TrackedObject
-    points: np.ndarray
-    sample: np.ndarray
-    distances: np.ndarray
-
-
-@dataclass
-class Association:
-    """One frame's association: per object the point sets it was seen by (with the sample distances when
-    a whole segment went to it, already computed for its cost), the segments left for new objects, and
-    (keep, gone) pairs of objects to merge."""
-
-    shares: dict[int, list[tuple[np.ndarray, np.ndarray | None, np.ndarray | None]]] = field(default_factory=dict)
-    objects: dict[int, TrackedObject] = field(default_factory=dict)
-    leftovers: list[Segment] = field(default_factory=list)
-    merges: list[tuple[TrackedObject, TrackedObject]] = field(default_factory=list)
-
-    def add(self, obj: TrackedObject, points: np.ndarray, sample: np.ndarray | None = None,
-            distances: np.ndarray | None = None) -> None:
-        self.objects[obj.id] = obj
-        self.shares.setdefault(obj.id, []).append((points, sample, distances))
-
-    def gone(self) -> set[int]:
-        """Ids of the objects merged into others."""
-        return {g.id for _, g in self.merges}
-
-    def keepers(self) -> dict[int, TrackedObject]:
-        """For each merged object's id, the surviving object it ends up in (merges may chain)."""
-        into = {g.id: k for k, g in self.merges}
-        for gone_id in list(into):
-            keep, seen = into[gone_id], {gone_id}
-            while keep.id in into and keep.id not in seen:
-                seen.add(keep.id)
-                keep = into[keep.id]
-            into[gone_id] = keep
-        return into
-
-    def merge(self) -> None:
-        """Each merged object's surface into the object it ends up in."""
-        gone = {g.id: g for _, g in self.merges}
-        for gone_id, keep in self.keepers().items():
-            keep.absorb(gone[gone_id])
-
-    def observed(self, n_sample: int, cap_m: float) -> list[Observed]:
-        """What each surviving object was seen by; shares of merged objects go to the object that took them."""
-        into = self.keepers()
-        shares: dict[int, list[tuple[np.ndarray, np.ndarray | None, np.ndarray | None]]] = {}
-        owners: dict[int, TrackedObject] = {}
-        for oid, parts in self.shares.items():
-            obj = into.get(oid, self.objects[oid])
-            owners[obj.id] = obj
-            shares.setdefault(obj.id, []).extend(parts if obj.id == oid else [(pts, None, None) for pts, _, _ in parts])
-        out = []
-        for oid, parts in shares.items():
-            obj = owners[oid]
-            if len(parts) == 1 and parts[0][1] is not None:
-                points, sample, distances = parts[0]
-            else:
-                points = np.concatenate([pts for pts, _, _ in parts])
-                sample = points[::max(1, -(-len(points) // n_sample))]
-                distances = obj.distance(sample, cap_m)
-            out.append(Observed(obj, points, sample, distances))
-        return out
-
-
-EDF_GEOMETRIES = ("completed", "surface")
+EDF_GEOMETRIES: tuple[str, ...] = typing.get_args(EDFGeometry)
 """`MappingParams.edf_geometry`: solid boxes completed where unseen, or the observed surfaces alone (9a)."""
 EDF_PAD_M = 0.5
 """The EDT runs on the window grown by this, so objects just outside still shape the field near its edge."""
@@ -257,7 +187,7 @@ class ObjectMapper:
 
     # --- association and registration ------------------------------------------------------------
 
-    def _associate(self, segments: list[Segment], live: list[TrackedObject]) -> Association:
+    def _associate(self, segments: list[Segment], live: list[TrackedObject]) -> FrameAssociation:
         """Who saw what: the points of each segment go to the objects whose surface explains them
         (nearest first), what no surface explains to the segment's Hungarian match or else to the object
         explaining most of the segment (it continues that surface); segments nobody explains or matches
@@ -276,9 +206,9 @@ class ObjectMapper:
                                           p.association_gate_m)
         C = association.cost_matrix(candidates, cost)
         owner = dict(association.assign(C, p.association_gate_m).pairs)
-        out = Association()
+        out = FrameAssociation()
         for j, seg in enumerate(segments):
-            explainers = [int(i) for i in np.nonzero(candidates[j])[0]
+            explainers = [i for i in map(int, np.nonzero(candidates[j])[0])
                           if association.explained_fraction(distances[j, i], p.explain_m) >= p.split_fraction]
             primary = owner.get(j)
             if not [i for i in explainers if i != primary]:
@@ -292,7 +222,7 @@ class ObjectMapper:
         return out
 
     def _split(self, seg: Segment, explainers: list[TrackedObject], primary: TrackedObject | None,
-               out: Association) -> None:
+               out: FrameAssociation) -> None:
         """Share one segment among the objects whose surfaces explain parts of it (touching objects)."""
         p = self.params
         dist = np.stack([o.distance(seg.points, p.association_cap_m) for o in explainers], axis=1)
@@ -329,15 +259,17 @@ class ObjectMapper:
         """Move the object when its observation sits off its surface and ICP explains that by a motion."""
         p = self.params
         obj = seen.obj
-        if np.mean(seen.distances > p.registration_trigger_m) < 0.2 or not self._movable(obj):
+        off_surface = np.mean(seen.distances > p.registration_trigger_m)
+        if off_surface < p.registration_trigger_fraction or not self._movable(obj):
             return
         result = align(seen.sample, obj.world_points, p.icp_max_correspondence_m, p.icp_max_iterations,
-                       normal_radius_m=2.5 * p.voxel_m)
+                       normal_radius_m=p.icp_normal_radius_voxels * p.voxel_m)
         moved = seen.sample @ result.T[:3, :3].T + result.T[:3, 3]
         after_d = obj.distance(moved, p.association_cap_m)
         before = association.truncated_mean_distance(seen.distances, p.association_cap_m)
         after = association.truncated_mean_distance(after_d, p.association_cap_m)
-        if after < 0.7 * before and before - after > 0.5 * p.voxel_m:
+        gain_m = p.registration_min_gain_voxels * p.voxel_m
+        if after < p.registration_accept_ratio * before and before - after > gain_m:
             obj.move(np.linalg.inv(result.T))
             seen.distances = obj.distance(seen.sample, p.association_cap_m)
             log.debug("object %d moved by %s (cost %.3f → %.3f m)", obj.id, np.round(-result.T[:3, 3], 3),
@@ -449,7 +381,7 @@ class ObjectMapper:
 
     def _create(self, points: np.ndarray) -> TrackedObject:
         p = self.params
-        prior = Posterior(mu=p.mu0_m, sigma=p.sigma0_m, alpha=p.alpha0, beta=p.beta0)
+        prior = p.prior()
         obj = TrackedObject(self._next_id, points, p.voxel_m, prior, floor_snap_m=p.floor_snap_m,
                             box_fill_max_m=p.box_fill_max_m,
                             completion=Completion(p.edf_voxel_m, p.assumed_depth_m, p.carve_after_misses))

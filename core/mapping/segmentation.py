@@ -13,6 +13,7 @@ come from within the depth range (at most (2 · range / voxel)³ cells).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from scipy import ndimage
@@ -74,7 +75,7 @@ def connected_voxels(keys: np.ndarray) -> np.ndarray:
     k = keys - lo
     grid = np.zeros(tuple(k.max(axis=0) + 1), dtype=bool)
     grid[k[:, 0], k[:, 1], k[:, 2]] = True
-    labels, _ = ndimage.label(grid, structure=_CONNECTIVITY_26)
+    labels, _ = cast(tuple[np.ndarray, int], ndimage.label(grid, structure=_CONNECTIVITY_26))
     return labels[k[:, 0], k[:, 1], k[:, 2]] - 1
 
 

@@ -15,7 +15,9 @@ compares observations against; voxels with |M_i| ≤ theta_zero are the surface 
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
+
+# scipy re-exports cKDTree from a compiled module whose names pyright cannot see.
+from scipy.spatial import cKDTree  # pyright: ignore[reportAttributeAccessIssue]
 
 _BITS = 21
 _OFFSET = 1 << (_BITS - 1)
@@ -110,8 +112,9 @@ class ObjectSubmap:
         """M_i at points (N×3, object frame): distance to the nearest surface voxel, at most `upper_m`."""
         if len(self._keys) == 0:
             return np.full(len(points), upper_m)
-        if self._tree is None or len(self._keys) > (1.0 + TREE_REBUILD_GROWTH) * self._tree_size:
-            self._tree = cKDTree(self.points)
+        tree = self._tree
+        if tree is None or len(self._keys) > (1.0 + TREE_REBUILD_GROWTH) * self._tree_size:
+            tree = self._tree = cKDTree(self.points)
             self._tree_size = len(self._keys)
-        d, _ = self._tree.query(points, k=1, distance_upper_bound=upper_m)
+        d, _ = tree.query(points, k=1, distance_upper_bound=upper_m)
         return np.minimum(d, upper_m)

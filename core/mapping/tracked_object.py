@@ -13,6 +13,8 @@ cut short by free space seen there): the EDF, the association and the consistenc
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from enum import Flag, auto
 
 import numpy as np
 
@@ -26,6 +28,31 @@ REFIT_CHANGE = 0.03
 """Refit the box's extent when the submap's voxel count changed by more than this fraction."""
 REFIT_YAW_GROWTH = 1.0
 """Refit its yaw (a convex hull) only when the submap grew by more than this fraction."""
+
+
+class _Change(Flag):
+    """What changed about an object, for `TrackedObject._invalidate`."""
+
+    SURFACE = auto()
+    """Points were added to the submap."""
+    CARVED = auto()
+    """Submap voxels were carved away: the box is refitted from scratch, yaw included."""
+    POSE = auto()
+    """Registration moved the object frame."""
+    REFIT = auto()
+    """The box was refitted."""
+    SIDES = auto()
+    """Completion evidence changed (a camera saw it, samples were seen through or hit)."""
+
+
+@dataclass(frozen=True)
+class _Shape:
+    """The box fitted to the submap and what is decided with it (object frame)."""
+
+    fit: BoxFit
+    footprint: Footprint
+    box_like: bool
+    """Every point of the footprint lies within `box_fill_max_m` of the seen surface."""
 
 
 def yaw_pose(yaw: float, position: np.ndarray) -> np.ndarray:
@@ -55,14 +82,12 @@ class TrackedObject:
         self.observations = 1
         self.updates = 0
         self.status = ObjectStatus.ACTIVE
-        self._fit: BoxFit | None = None
+        self._shape: _Shape | None = None
         self._fit_voxels = -1
         self._yaw: float | None = None
         self._yaw_voxels = 0
         self._world_points: np.ndarray | None = None
         self._bounds: np.ndarray | None = None
-        self._footprint: Footprint | None = None
-        self._box_like = True
         self._grown: dict[float, Footprint] = {}
         self._interior: np.ndarray | None = None
         self.hollow = False
@@ -78,15 +103,14 @@ class TrackedObject:
     def move(self, T_world_delta: np.ndarray) -> None:
         """Apply a world-frame motion of the body (from registration)."""
         self.T_world_object = T_world_delta @ self.T_world_object
-        self._changed()
-        self._interior = None
+        self._invalidate(_Change.POSE)
 
     # --- submap -----------------------------------------------------------------------------------
 
     def integrate(self, points_world: np.ndarray) -> None:
         """Add an observation's points to the submap."""
         self.submap.integrate(self.to_object(points_world))
-        self._changed()
+        self._invalidate(_Change.SURFACE)
 
     def absorb(self, other: TrackedObject) -> None:
         """Take over the surface of another object (a duplicate of part of this one)."""
@@ -100,13 +124,21 @@ class TrackedObject:
         """Drop submap voxels repeatedly seen through; returns how many went."""
         n = self.submap.carve(min_misses)
         if n:
-            self._changed()
-            self._fit, self._yaw = None, None
+            self._invalidate(_Change.CARVED)
         return n
 
-    def _changed(self) -> None:
-        self._world_points = None
-        self._bounds = None
+    def _invalidate(self, change: _Change) -> None:
+        """Drop what `change` makes stale: the one place that knows which cache depends on what."""
+        if change & (_Change.SURFACE | _Change.CARVED | _Change.POSE):
+            self._world_points = None
+        if change & (_Change.SURFACE | _Change.CARVED | _Change.POSE | _Change.SIDES):
+            self._bounds = None
+        if change & (_Change.POSE | _Change.REFIT):
+            self._interior = None
+        if change & _Change.CARVED:
+            self._shape, self._yaw = None, None
+        if change & _Change.REFIT:
+            self._grown = {}
 
     @property
     def world_points(self) -> np.ndarray:
@@ -138,36 +170,38 @@ class TrackedObject:
         """The well-supported surface voxels (V×3) in the world."""
         return self.world_points[self._solid()]
 
-    @property
-    def fit(self) -> BoxFit:
-        """Upright box around the submap's well-supported voxels, in the object frame.
+    def _current_shape(self) -> _Shape:
+        """The box fitted to the submap's well-supported voxels, refitted first if the submap changed.
 
         Voxels holding fewer than a quarter of the median point count are depth-noise outliers of
         the surface and are left out. The extent is refitted when the voxel count changed by more than
         `REFIT_CHANGE` since the last fit, the yaw when it grew by `REFIT_YAW_GROWTH` (or voxels were carved).
         """
         n = len(self.submap)
-        if self._fit is None or abs(n - self._fit_voxels) > REFIT_CHANGE * max(self._fit_voxels, 1):
-            self._fit_voxels = n
-            solid = self._solid()
-            pts = self.submap.points[solid] if solid.sum() >= 4 else self.submap.points
-            if self._yaw is None or n > (1.0 + REFIT_YAW_GROWTH) * self._yaw_voxels:
-                self._yaw, self._yaw_voxels = None, n
-            self._fit = fit_upright_box(pts, floor_z=-self.T_world_object[2, 3], floor_snap_m=self.floor_snap_m,
-                                        yaw=self._yaw)
-            self._yaw = self._fit.yaw
-            self._footprint = Footprint.of(pts, self.submap.voxel_m)
-            self._box_like = self._footprint.box_gap(self._fit) <= self.box_fill_max_m
-            self._grown = {}
-            self._interior = None
-        return self._fit
+        if self._shape is not None and abs(n - self._fit_voxels) <= REFIT_CHANGE * max(self._fit_voxels, 1):
+            return self._shape
+        self._fit_voxels = n
+        solid = self._solid()
+        pts = self.submap.points[solid] if solid.sum() >= 4 else self.submap.points
+        if self._yaw is None or n > (1.0 + REFIT_YAW_GROWTH) * self._yaw_voxels:
+            self._yaw, self._yaw_voxels = None, n
+        fit = fit_upright_box(pts, floor_z=-self.T_world_object[2, 3], floor_snap_m=self.floor_snap_m, yaw=self._yaw)
+        self._yaw = fit.yaw
+        footprint = Footprint.of(pts, self.submap.voxel_m)
+        self._shape = _Shape(fit, footprint, footprint.box_gap(fit) <= self.box_fill_max_m)
+        self._invalidate(_Change.REFIT)
+        return self._shape
+
+    @property
+    def fit(self) -> BoxFit:
+        """Upright box around the submap's well-supported voxels, in the object frame."""
+        return self._current_shape().fit
 
     @property
     def box_like(self) -> bool:
         """Does the fitted box stand for the object (every point of its footprint within `box_fill_max_m`
         of the seen surface)? If not, the object is its surface, columns filled down to the floor."""
-        _ = self.fit
-        return self._box_like and not self.hollow
+        return self._current_shape().box_like and not self.hollow
 
     @property
     def solid(self) -> BoxFit:
@@ -192,19 +226,17 @@ class TrackedObject:
     def saw_from(self, camera_world: np.ndarray) -> None:
         """A camera at this world position observed the object (which sides were seen)."""
         self.completion.saw_from(self.to_object(np.asarray(camera_world, float)[None])[0])
-        self._bounds = None
+        self._invalidate(_Change.SIDES)
 
     def mark_completion(self, samples_world: np.ndarray, through: np.ndarray, hit: np.ndarray) -> None:
         """Record which completion samples were seen through or hit in one frame."""
         self.completion.mark(self.to_object(samples_world), through, hit)
-        self._bounds = None
+        self._invalidate(_Change.SIDES)
 
     @property
     def footprint(self) -> Footprint:
         """Occupied x-y cells of the surface in the object frame (refitted with the box)."""
-        _ = self.fit
-        assert self._footprint is not None
-        return self._footprint
+        return self._current_shape().footprint
 
     def interior(self, step_m: float, inset_m: float) -> np.ndarray:
         """World points on a `step_m` grid inside the fitted box, at least `inset_m` from its faces (empty

@@ -6,7 +6,7 @@ different threads but never concurrently (it holds a lock).
 
 from __future__ import annotations
 
-from typing import Protocol, runtime_checkable
+from typing import Protocol
 
 import numpy as np
 
@@ -16,11 +16,13 @@ TIMING_KEYS: tuple[str, ...] = ("points", "segmentation", "association", "regist
 """Stages reported in `timings_ms` (ms of the last `integrate`; 'edf' of the last `local_edf`)."""
 
 
-@runtime_checkable
 class WorldMap(Protocol):
     """A map built from depth frames that the controller sees through a signed `LocalEDF`."""
 
-    timings_ms: dict[str, float]
+    @property
+    def timings_ms(self) -> dict[str, float]:
+        """Milliseconds of the stages of the latest integration, by stage name."""
+        ...
 
     def integrate(self, obs: Observation) -> None:
         """Fuse every depth frame of `obs`; `obs.state` gives the robot's pose for the self-filter."""

@@ -13,6 +13,7 @@ import casadi as ca
 import numpy as np
 
 from core.robot.model import RobotModel
+from core.types import vec3
 
 _AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 
@@ -30,7 +31,7 @@ def _rotation(axis: tuple[float, float, float], angle: ca.SX) -> ca.SX:
 def _joint_motion(shortname: str, joint, qi: ca.SX) -> Transform:
     """Transform across one joint for its coordinate qi."""
     if shortname in ("JointModelRevoluteUnaligned", "JointModelPrismaticUnaligned"):
-        axis = tuple(float(a) for a in np.asarray(joint.axis).ravel())
+        axis = vec3(np.asarray(joint.axis).ravel())
         revolute = shortname.startswith("JointModelRevolute")
     elif shortname[-2] in "RP" and shortname[-1] in _AXES and shortname.startswith("JointModel"):
         axis, revolute = _AXES[shortname[-1]], shortname[-2] == "R"

@@ -43,22 +43,24 @@ class DepthCamera:
         self._version = -1
         self._options = mujoco.MjvOption()
 
-    def _ensure(self) -> None:
+    def _ensure(self) -> mujoco.Renderer:
+        """The depth renderer, made anew (with the segmentation renderer dropped) when the model changed."""
         if self._renderer is not None and self._version == self.world.model_version:
-            return
+            return self._renderer
         self.close()
         m = self.world.model
         m.cam_fovy[m.camera(f"camera_{self.name}").id] = self.params.fovy_deg
-        self._renderer = mujoco.Renderer(m, self.params.height_px, self.params.width_px)
-        self._renderer.enable_depth_rendering()
+        renderer = self._renderer = mujoco.Renderer(m, self.params.height_px, self.params.width_px)
+        renderer.enable_depth_rendering()
         self._version = self.world.model_version
+        return renderer
 
     def capture(self) -> tuple[float, np.ndarray]:
         """(sim time, depth image in m as the camera reports it: 0 where nothing returned)."""
         with self.world.lock:
-            self._ensure()
-            self._renderer.update_scene(self.world.data, camera=f"camera_{self.name}", scene_option=self._options)
-            depth = self._renderer.render().astype(np.float64)
+            renderer = self._ensure()
+            renderer.update_scene(self.world.data, camera=f"camera_{self.name}", scene_option=self._options)
+            depth = renderer.render().astype(np.float64)
             dark = self.world.dark_geoms()
             no_return = None
             if len(dark):
@@ -79,12 +81,13 @@ class DepthCamera:
 
     def _segmentation(self) -> np.ndarray:
         """MuJoCo's segmentation render (H×W×2: object id, object type) of the current scene (world lock held)."""
-        if self._seg_renderer is None or self._version != self.world.model_version:
+        seg = self._seg_renderer
+        if seg is None or self._version != self.world.model_version:
             self._ensure()
-            self._seg_renderer = mujoco.Renderer(self.world.model, self.params.height_px, self.params.width_px)
-            self._seg_renderer.enable_segmentation_rendering()
-        self._seg_renderer.update_scene(self.world.data, camera=f"camera_{self.name}", scene_option=self._options)
-        return self._seg_renderer.render()
+            seg = self._seg_renderer = mujoco.Renderer(self.world.model, self.params.height_px, self.params.width_px)
+            seg.enable_segmentation_rendering()
+        seg.update_scene(self.world.data, camera=f"camera_{self.name}", scene_option=self._options)
+        return seg.render()
 
     def render_box_ids(self) -> np.ndarray:
         """Ground-truth segmentation (tests only): per pixel the box id, '' for anything else."""

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
@@ -158,7 +159,7 @@ def _passable(boxes: list[Box], start: tuple[float, float], goal: tuple[float, f
         lx, ly = np.abs(c * dx + s * dy) - b.size[0] / 2, np.abs(-s * dx + c * dy) - b.size[1] / 2
         dist = np.hypot(np.maximum(lx, 0), np.maximum(ly, 0)) + np.minimum(np.maximum(lx, ly), 0)
         blocked |= dist < clearance_m
-    labels, _ = ndimage.label(~blocked)
+    labels, _ = cast(tuple[np.ndarray, int], ndimage.label(~blocked))
 
     def cell(p: tuple[float, float]) -> tuple[int, int]:
         return int((p[0] - x0) / cell_m), int((p[1] - y0) / cell_m)
@@ -191,7 +192,7 @@ def random_scene(seed: int, n_boxes: int = 8, area_m: float = 5.0, two_layers: b
                 break
             x, y = rng.uniform(-half + box_m / 2, half - box_m / 2, size=2)
             yaw = float(rng.uniform(-math.pi / 4, math.pi / 4))
-            cand = Box(f"box_{len(boxes)}", (float(x), float(y), box_m / 2), (box_m,) * 3, yaw)
+            cand = Box(f"box_{len(boxes)}", (float(x), float(y), box_m / 2), (box_m, box_m, box_m), yaw)
             if all(math.dist(cand.position[:2], b.position[:2]) > 1.5 * box_m for b in boxes):
                 boxes.append(cand)
         if len(boxes) < n_floor:

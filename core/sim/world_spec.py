@@ -151,5 +151,5 @@ def box_rgba(box: Box) -> tuple[float, float, float, float]:
 
 def se3_to_pos_quat(T: pin.SE3 | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(position, wxyz quaternion) of a 4×4 transform."""
-    T = T.homogeneous if isinstance(T, pin.SE3) else np.asarray(T)
-    return T[:3, 3].copy(), _quat(T[:3, :3])
+    M = np.asarray(T) if isinstance(T, np.ndarray) else T.homogeneous
+    return M[:3, 3].copy(), _quat(M[:3, :3])

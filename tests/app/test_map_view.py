@@ -1,11 +1,13 @@
-"""Removed objects stay visible (grey, labelled) at their last known pose."""
+"""The map view draws live objects coloured by E[v]; removed ones stay visible (grey, labelled) at their last
+known pose until the map starts over."""
 
 import numpy as np
 import viser
 
 from app.snapshot import Snapshot
 from app.ui.map_view import MapView
-from core.types import MappedObject, ObjectMapSnapshot, Posterior, RobotState
+from core.params import MappingParams
+from core.types import MappedObject, ObjectMapSnapshot, RobotState
 from tests.app.conftest import free_port
 
 
@@ -20,13 +22,18 @@ def test_removed_object_drawn_at_last_pose(robot):
         view = MapView(server, robot)
         pose = np.eye(4)
         pose[:3, 3] = [2.0, 1.0, 0.3]
-        obj = MappedObject(3, pose, np.array([0.6, 0.6, 0.6]), np.zeros((0, 3)), Posterior(alpha=1.0, beta=2.0))
+        prior = MappingParams().prior()
+        obj = MappedObject(3, pose, np.array([0.6, 0.6, 0.6]), np.zeros((0, 3)), prior)
         view.update(snap([obj]))
-        assert [(o.id, removed) for o, removed in view._objects_to_draw(snap([obj]))] == [(3, False)]
-        drawn = view._objects_to_draw(snap([], removed=(3,)))
-        assert [(o.id, removed) for o, removed in drawn] == [(3, True)]
-        np.testing.assert_allclose(drawn[0][0].pose[:3, 3], [2.0, 1.0, 0.3])
+        assert view.drawn_objects()[3].label == f"#3 E[v]={prior.consistency:.2f}"
+
         view.update(snap([], removed=(3,)))
-        assert 3 in view._objects
+        drawn = view.drawn_objects()
+        assert list(drawn) == [3]
+        assert drawn[3].label.endswith(" removed")
+        np.testing.assert_allclose(drawn[3].position, [2.0, 1.0, 0.3])
+
+        view.update(snap([]))  # a new, empty map: nothing left to draw
+        assert view.drawn_objects() == {}
     finally:
         server.stop()

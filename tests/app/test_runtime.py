@@ -4,7 +4,6 @@ import gzip
 import json
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -91,34 +90,40 @@ def test_bad_edits_are_refused_and_nothing_is_lost():
         RuntimeConfig(map_kind="octomap")
 
 
+def _time_stands(snapshots, n: int = 5) -> bool:
+    """The last `n` published snapshots show one sim time: the physics has stopped."""
+    return len(snapshots) >= n and len({s.state.t for s in snapshots[-n:]}) == 1
+
+
 def test_live_run_control_and_subscribers():
     seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=2.0, y=0.0))])
     rt = Runtime(RuntimeConfig(map_kind="ground_truth", publish_hz=20.0), scene=Scene(), sequence=seq)
     got_a, got_b = [], []
     rt.subscribe(got_a.append)
     rt.subscribe(got_b.append)
+
     rt.start_live()
     try:
         rt.start()
         assert wait_until(lambda: rt.state.v[0] > 0.1, timeout_s=30)  # driving (a loaded machine starts slowly)
         rt.pause()
-        time.sleep(0.3)
+        assert wait_until(lambda: rt.run_state == RunState.PAUSED and _time_stands(got_a), timeout_s=30)
         t_paused = rt.time
-        time.sleep(0.5)
-        assert rt.time == pytest.approx(t_paused)  # physics frozen
+        ten_more = len(got_a) + 10
+        assert wait_until(lambda: len(got_a) >= ten_more, timeout_s=30)
+        assert rt.time == pytest.approx(t_paused)  # physics frozen over ten more published snapshots
         rt.step()
-        time.sleep(0.5)
+        assert wait_until(lambda: rt.time > t_paused + 0.05 and _time_stands(got_a), timeout_s=30)
         assert rt.time == pytest.approx(t_paused + 0.1, abs=0.011)
         rt.start()
-        time.sleep(0.5)
+        assert wait_until(lambda: rt.time > t_paused + 0.3, timeout_s=30)
         rt.emergency_stop()
-        time.sleep(0.6)
+        assert wait_until(lambda: np.abs(rt.state.v).max() < 0.02, timeout_s=30)
         assert rt.run_state == RunState.ESTOP
-        assert np.abs(rt.state.v).max() < 0.02
+        assert wait_until(lambda: any(s.run_state == RunState.ESTOP for s in got_a), timeout_s=30)  # published
     finally:
         rt.shutdown()
     assert len(got_a) > 20 and [s.seq for s in got_a] == [s.seq for s in got_b]
-    assert any(s.run_state == RunState.ESTOP for s in got_a)
 
 
 def test_recording_round_trip(tmp_path):

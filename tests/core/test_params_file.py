@@ -8,7 +8,7 @@ import pytest
 import yaml
 
 from core import params
-from core.params_file import CHOICES, FRACTIONS, POSITIVE, Tunables, load_params, parse_params
+from core.params_file import FRACTIONS, POSITIVE, Tunables, load_params, parse_params
 from core.yaml_validation import FileFormatError
 
 
@@ -50,10 +50,15 @@ def test_bad_values_name_field_and_line(text, field, line, says):
 
 def test_bound_tables_name_real_fields():
     classes = {c.__name__: c for c in vars(params).values() if dataclasses.is_dataclass(c)}
-    for key in [*POSITIVE, *FRACTIONS, *CHOICES]:
+    for key in [*POSITIVE, *FRACTIONS]:
         cls, name = key.split(".")
         assert name in {f.name for f in dataclasses.fields(classes[cls])}, key
-    for key, choices in CHOICES.items():
-        cls, name = key.split(".")
-        assert getattr(classes[cls](), name) in choices
-        assert typing.get_type_hints(classes[cls])[name] is str
+
+
+def test_every_string_tunable_is_a_closed_choice_its_default_is_in():
+    """Option sets are Literals, so a params file is checked against them (no free-form strings)."""
+    for cls in (c for c in vars(params).values() if dataclasses.is_dataclass(c)):
+        for name, hint in typing.get_type_hints(cls).items():
+            assert hint is not str, f"{cls.__name__}.{name} is a bare str"
+            if typing.get_origin(hint) is typing.Literal:
+                assert getattr(cls(), name) in typing.get_args(hint)

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Annotated
 
 from fastapi import APIRouter, Body, Depends, HTTPException, Request, status
 
@@ -13,6 +14,9 @@ from app.bridge.protocol import ConfigIn, RunStatus, StepIn
 from app.bridge.routes import AUTH_ERRORS, CONFLICT
 from app.closed_loop import FaultError
 from app.snapshot import RunState
+
+if TYPE_CHECKING:
+    from app.runtime import Runtime
 
 router = APIRouter(prefix="/api/run", tags=["run control"], dependencies=[Depends(require_token)],
                    responses=AUTH_ERRORS)
@@ -41,11 +45,20 @@ def start(request: Request, attached: Attached, link: Link) -> RunStatus:
     return _status(attached)
 
 
-@router.post("/pause")
-def pause(attached: Attached) -> RunStatus:
-    """Pause: the simulation freezes; a real robot holds still."""
-    attached.runtime.pause()
-    return _status(attached)
+def _command(name: str, act: Callable[[Runtime], None], doc: str) -> Callable[[RuntimeAttachment], RunStatus]:
+    """A run-control route that needs no precondition: do `act` on the runtime, answer the run's status."""
+
+    def route(attached: Attached) -> RunStatus:
+        act(attached.runtime)
+        return _status(attached)
+
+    route.__name__ = route.__qualname__ = name  # FastAPI names the operation after the function
+    route.__doc__ = doc
+    return route
+
+
+router.post("/pause")(_command("pause", lambda rt: rt.pause(),
+                               "Pause: the simulation freezes; a real robot holds still."))
 
 
 @router.post("/step", responses=CONFLICT)
@@ -59,25 +72,12 @@ def step(attached: Attached, body: Annotated[StepIn | None, Body()] = None) -> R
     return _status(attached)
 
 
-@router.post("/stop")
-def stop(attached: Attached) -> RunStatus:
-    """Stop the sequence; the robot comes to rest."""
-    attached.runtime.stop()
-    return _status(attached)
-
-
-@router.post("/reset")
-def reset(attached: Attached) -> RunStatus:
-    """Reload the scene (simulation: robot back at its start), clear map, plan, progress and a fault."""
-    attached.runtime.reset()
-    return _status(attached)
-
-
-@router.post("/emergency-stop")
-def emergency_stop(attached: Attached) -> RunStatus:
-    """Zero velocity at once; nothing moves until start or reset."""
-    attached.runtime.emergency_stop()
-    return _status(attached)
+router.post("/stop")(_command("stop", lambda rt: rt.stop(), "Stop the sequence; the robot comes to rest."))
+router.post("/reset")(_command("reset", lambda rt: rt.reset(),
+                               "Reload the scene (simulation: robot back at its start), clear map, plan, progress "
+                               "and a fault."))
+router.post("/emergency-stop")(_command("emergency_stop", lambda rt: rt.emergency_stop(),
+                                        "Zero velocity at once; nothing moves until start or reset."))
 
 
 @router.post("/config", responses=CONFLICT)

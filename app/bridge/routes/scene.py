@@ -10,9 +10,10 @@ from app.bridge.attachment import RuntimeAttachment
 from app.bridge.auth import require_token
 from app.bridge.dependencies import Simulation
 from app.bridge.protocol import BoxIn, BoxMoveIn, BoxOut, ErrorOut, RandomiseIn, SceneOut
-from app.bridge.routes import AUTH_ERRORS, CONFLICT
+from app.bridge.routes import AUTH_ERRORS, CONFLICT, NO_RUNTIME
 from app.bridge.views import scene_out
 from core.sim.scene import Box
+from core.types import vec3
 
 router = APIRouter(prefix="/api/scene", tags=["scene"])
 NOT_FOUND = {404: {"model": ErrorOut, "description": "No box with this id"}}
@@ -31,7 +32,7 @@ def _existing(sim: RuntimeAttachment, box_id: str) -> str:
     return box_id
 
 
-@router.get("", responses={**CONFLICT, 503: AUTH_ERRORS[503]})
+@router.get("", responses={**CONFLICT, **NO_RUNTIME})
 def get_scene(sim: Simulation) -> SceneOut:
     """The boxes of the simulated scene and the robot's base pose."""
     return scene_out(sim.runtime.scene())
@@ -40,7 +41,7 @@ def get_scene(sim: Simulation) -> SceneOut:
 @router.post("/boxes", status_code=status.HTTP_201_CREATED, **PROTECTED)
 def add_box(sim: Simulation, body: BoxIn) -> BoxOut:
     """Add a box (422 if its id exists or it would overlap the robot)."""
-    box = Box(body.id, tuple(body.position), tuple(body.size), body.yaw)
+    box = Box(body.id, vec3(body.position), vec3(body.size), body.yaw)
     sim.runtime.add_box(box)
     return _box_out(box)
 
@@ -48,7 +49,7 @@ def add_box(sim: Simulation, body: BoxIn) -> BoxOut:
 @router.put("/boxes/{box_id}", **PROTECTED_BOX)
 def move_box(sim: Simulation, box_id: BoxId, body: BoxMoveIn) -> BoxOut:
     """Move a box (422 if it would overlap the robot; nothing changes then)."""
-    return _box_out(sim.runtime.move_box(_existing(sim, box_id), tuple(body.position), body.yaw))
+    return _box_out(sim.runtime.move_box(_existing(sim, box_id), vec3(body.position), body.yaw))
 
 
 @router.delete("/boxes/{box_id}", **PROTECTED_BOX)

@@ -7,14 +7,13 @@ from fastapi import APIRouter, Depends, Request
 from app.bridge.auth import require_token
 from app.bridge.dependencies import Attached
 from app.bridge.errors import file_problems
-from app.bridge.protocol import ErrorOut, SequenceIn, SequenceOut, ValidationOut
-from app.bridge.routes import AUTH_ERRORS
+from app.bridge.protocol import SequenceIn, SequenceOut, ValidationOut
+from app.bridge.routes import AUTH_ERRORS, NO_RUNTIME
 from app.target_check import check_targets
 from tasks.schema import TaskSequence
 from tasks.sequence_file import FileFormatError, parse_sequence, sequence_to_yaml
 
 router = APIRouter(prefix="/api/sequence", tags=["sequence"])
-NO_RUNTIME = {503: {"model": ErrorOut, "description": "No runtime is attached to the bridge"}}
 
 
 def _out(sequence: TaskSequence, version: int, warnings: list[str] | None = None) -> SequenceOut:

@@ -5,11 +5,11 @@ from __future__ import annotations
 from fastapi import APIRouter, Request
 
 from app.bridge.dependencies import Attached, Link
-from app.bridge.protocol import ErrorOut, Health, PlanResponse, ProgressOut, RobotStateOut
+from app.bridge.protocol import Health, PlanResponse, ProgressOut, RobotStateOut
+from app.bridge.routes import NO_RUNTIME
 from app.bridge.views import health_out, plan_out, progress_out, state_out
 
 router = APIRouter(prefix="/api", tags=["status"])
-NO_RUNTIME = {503: {"model": ErrorOut, "description": "No runtime is attached to the bridge"}}
 
 
 @router.get("/health")

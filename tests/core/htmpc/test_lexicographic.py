@@ -44,7 +44,6 @@ def test_level_one_keeps_its_single_task_optimum(robot, first):
 
 def test_level_two_improves_without_breaking_level_one(robot):
     params = HTMPCParams(sqp_iters_on_switch=8)
-    _, base_only_ee_first, _ = converged_errors(robot, params, ("ee",))
     ee_alone, _, _ = converged_errors(robot, params, ("ee",))
     ee, base, _ = converged_errors(robot, params, ("ee", "base"))
     c_free = lockstep(HTMPC(robot, params))

@@ -4,21 +4,21 @@ the observations of the objects merged into it; the Hungarian assignment keeps o
 import numpy as np
 
 from core.mapping.association import assign
-from core.mapping.object_mapper import Association
+from core.mapping.frame_association import FrameAssociation
 from core.mapping.tracked_object import TrackedObject
-from core.types import Posterior
+from core.params import MappingParams
 
 
 def _slab(object_id: int, x0: float, x1: float) -> TrackedObject:
     """An object whose surface is a vertical face from x0 to x1 at y = 0 (5 cm points)."""
     x, z = np.meshgrid(np.arange(x0, x1, 0.05), np.arange(0.05, 0.5, 0.05), indexing="ij")
     points = np.column_stack([x.ravel(), np.zeros(x.size), z.ravel()])
-    return TrackedObject(object_id, points, 0.05, Posterior(), floor_snap_m=10.0)
+    return TrackedObject(object_id, points, 0.05, MappingParams().prior(), floor_snap_m=10.0)
 
 
 def test_chained_merges_end_in_the_surviving_object():
     big, middle, small = _slab(1, 0.0, 2.0), _slab(2, 1.5, 2.5), _slab(3, 2.2, 2.4)
-    out = Association()
+    out = FrameAssociation()
     seen = np.array([[2.3, 0.0, 0.2], [2.25, 0.0, 0.3]])
     out.add(small, seen)
     out.add(middle, seen + [0.1, 0.0, 0.0])

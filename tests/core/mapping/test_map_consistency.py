@@ -3,6 +3,7 @@ beyond ±Delta_max, the exact posterior's moments by numerical integration, and 
 latencies measured with the paper's cap (docs/decisions.md, "Removal speed")."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -11,9 +12,10 @@ from scipy.special import betaln
 from scipy.stats import beta as beta_dist
 
 from core.mapping.consistency import branch_weights, cap, forced_outlier, update
+from core.params import MappingParams
 from core.types import Posterior
 
-PRIOR = Posterior(mu=0.0, sigma=0.5, alpha=2.0, beta=1.0)
+PRIOR = MappingParams().prior()
 
 
 def _method_md_alpha_beta(theta: float, S: float) -> tuple[float, float]:
@@ -137,9 +139,9 @@ def test_moments_match_numerical_integration(seed):
 
 
 def test_cap_keeps_the_ratio():
-    post = cap(Posterior(alpha=50.0, beta=10.0), 25.0)
+    post = cap(replace(PRIOR, alpha=50.0, beta=10.0), 25.0)
     assert (post.alpha, post.beta) == pytest.approx((25.0, 5.0))
-    assert cap(Posterior(alpha=5.0, beta=1.0), 25.0) == Posterior(alpha=5.0, beta=1.0)
+    assert cap(replace(PRIOR, alpha=5.0, beta=1.0), 25.0) == replace(PRIOR, alpha=5.0, beta=1.0)
 
 
 def _forced_outliers_to_removal(seen: int, limit: float, weight: float) -> int:

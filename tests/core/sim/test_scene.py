@@ -62,8 +62,10 @@ def test_yaml_round_trip(tmp_path):
 def test_shipped_scenes_load():
     from pathlib import Path
 
-    for path in (Path(__file__).parents[3] / "core/sim/scenes").glob("*.yaml"):
-        assert load_scene(path).boxes
+    paths = sorted((Path(__file__).parents[3] / "core/sim/scenes").glob("*.yaml"))
+    assert paths, "no scene files found"
+    for path in paths:
+        assert load_scene(path).boxes, path.name
 
 
 @pytest.mark.parametrize(

@@ -1,15 +1,27 @@
 """SimRobot behind the RobotBackend protocol."""
 
 import numpy as np
+import pytest
 
 from core.sim.scene import Box, Scene
 from core.sim.sim_robot import SimRobot
-from core.types import RobotBackend
+from core.types import Observation, RobotBackend
 
 
-def test_is_a_robot_backend(world):
-    robot = SimRobot(world)
-    assert isinstance(robot, RobotBackend)
+def _drive_forward(backend: RobotBackend, speed_mps: float, t: float) -> Observation:
+    """What the runtime does with any backend: command a base velocity, then observe."""
+    backend.command(np.array([speed_mps, 0, 0, 0, 0, 0, 0, 0, 0]), t)
+    return backend.observe()
+
+
+def test_moves_and_reports_through_the_backend_protocol(world):
+    robot = SimRobot(world, cameras=())
+    first = _drive_forward(robot, 0.5, 0.0)
+    robot.step(0.3)
+    obs = _drive_forward(robot, 0.5, robot.time)
+    assert obs.state.t == pytest.approx(first.state.t + 0.3)
+    assert obs.state.q[0] > first.state.q[0] + 0.05 and obs.state.v[0] > 0.4
+    assert obs.odometry is not None and obs.odometry.pose[0] > 0.05  # the simulation reports odometry
     robot.close()
 
 
