@@ -52,7 +52,7 @@ class BufferedFunction:
         self._buffer, self._trigger = fn.buffer()
         self.inputs = [np.zeros(fn.nnz_in(i)) for i in range(fn.n_in())]
         self.outputs = [np.zeros(fn.nnz_out(i)) for i in range(fn.n_out())]
-        self._views = ([memoryview(a) for a in self.inputs], [memoryview(a) for a in self.outputs])
+        self._views = ([a.data for a in self.inputs], [a.data for a in self.outputs])
         self._bind()
 
     def _bind(self) -> None:

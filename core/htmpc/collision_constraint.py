@@ -108,6 +108,7 @@ class CollisionConstraint:
         Jacobians JP and ∂(J_P v)/∂q; the base boxes' rows are added here. One batch of EDF queries for all."""
         if self.boxes is not None:  # the spheres' EDF comes with the boxes' first batch of queries (`BoxPoints`)
             pts = self.boxes.points(q, v, edf, also=P)
+            assert pts.also is not None and pts.distance is not None and pts.gradient is not None, "one batch"
             JP, dvel = np.concatenate([JP, pts.JP], axis=1), np.concatenate([dvel, pts.dvel_dq], axis=1)
             d, grad = np.concatenate([pts.also[0], pts.distance], axis=1), np.concatenate([pts.also[1], pts.gradient],
                                                                                          axis=1)

@@ -29,6 +29,10 @@ class HorizonKinematics:
     """∂(J_P(q) v̄)/∂q (K,M,3,9) at the iterate's velocities v̄: how a sphere's velocity changes with q,
     needed to linearise dh/dt = ∇EDF^T J_P(q) v in q as well as in v (eq. 10)."""
 
+    def dvel(self) -> np.ndarray:
+        """`dvel_dq`, zero when it was not evaluated (velocities v̄ = 0)."""
+        return self.dvel_dq if self.dvel_dq is not None else np.zeros_like(self.JP)
+
 
 @cache
 def _node_function(robot: RobotModel, jit: bool) -> ca.Function:

@@ -200,7 +200,8 @@ class HTMPC:
 
     def _task(self, name: str, refs: References) -> Task:
         """The task object for `name` under these references (the base-frame EE task for a base-frame target)."""
-        return self.ee_base_task if name == "ee" and refs.ee.frame == "base" else self.tasks[name]
+        base_frame = name == "ee" and refs.ee is not None and refs.ee.frame == "base"
+        return self.ee_base_task if base_frame else self.tasks[name]
 
     # --- one SQP iteration -------------------------------------------------------------------------
 
@@ -269,7 +270,7 @@ class HTMPC:
         at_tau = self._step_kinematics(q2, v2)
         rows = self.collision.rows_at(
             np.vstack([it.q[1:N], q_tau]), np.vstack([it.v[1:N], v_tau]), np.concatenate([kin.P[1:N], at_tau.P[1:]]),
-            np.concatenate([kin.JP[1:N], at_tau.JP[1:]]), np.concatenate([kin.dvel_dq[1:N], at_tau.dvel_dq[1:]]), edf)
+            np.concatenate([kin.JP[1:N], at_tau.JP[1:]]), np.concatenate([kin.dvel()[1:N], at_tau.dvel()[1:]]), edf)
         nodes = CollisionRows(rows.a_q[:-1], rows.a_v[:-1], rows.lb[:-1], rows.h[:-1])
         last = CollisionRows(rows.a_q[-1:], rows.a_v[-1:], rows.lb[-1:], rows.h[-1:])
         return nodes, step_rows(last, x0[:NQ], x0[NQ:], tau)
@@ -381,12 +382,14 @@ class HTMPC:
         new iterate once, which the plan reuses for its EE path."""
         kin_new = self.kinematics(step.q)
         step.kin_new = kin_new
+        lins, q_bar = step.lins, step.q_bar
+        assert lins is not None and q_bar is not None, "a step that produced a plan has its linearisation"
         worst = 0.0
         for name in order:
-            lin = step.lins[name]
+            lin = lins[name]
             old = 0.5 * float(np.sum(lin.weights * lin.e0[1:] ** 2))
             new = self._true_cost(step.q, kin_new, [name], refs)
-            e = lin.e0[1:] + np.einsum("kmj,kj->km", lin.J[1:], step.q[1:] - step.q_bar[1:])
+            e = lin.e0[1:] + np.einsum("kmj,kj->km", lin.J[1:], step.q[1:] - q_bar[1:])
             predicted = 0.5 * float(np.sum(lin.weights * e**2))
             scale = abs(old - predicted) + TRUST_COST_FLOOR * (1.0 + old)
             worst = max(worst, abs(new - predicted) / scale)
@@ -416,12 +419,13 @@ class HTMPC:
         """The plan of a step (its EE path from the FK the trust-region test already evaluated); `extras` adds to
         the plan's diagnostics (SQP and QP iterations of the step)."""
         p = self.params
-        kin = step.kin
-        errors = tuple(float(np.linalg.norm(step.lins[name].e0[0])) for name in order)
+        kin, lins, q_bar = step.kin, step.lins, step.q_bar
+        assert kin is not None and lins is not None and q_bar is not None, "a step that produced a plan is whole"
+        errors = tuple(float(np.linalg.norm(lins[name].e0[0])) for name in order)
         if step.kin_new is not None:
             ee_path = step.kin_new.p.copy()
         else:  # Gauss-Newton prediction p̄ + J_p (q − q̄)
-            ee_path = kin.p + np.einsum("kij,kj->ki", kin.Jp, step.q - step.q_bar)
+            ee_path = kin.p + np.einsum("kij,kj->ki", kin.Jp, step.q - q_bar)
         v = np.clip(step.v, -self.robot.limits.v_max, self.robot.limits.v_max)
         a = np.clip(step.a, -self.robot.limits.a_max, self.robot.limits.a_max)
         max_slack = float(step.slack.max()) if step.slack.size else 0.0

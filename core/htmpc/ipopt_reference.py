@@ -219,8 +219,9 @@ class IpoptReference:
             local = np.zeros((N - 1, self.boxes.n_rows, 3))
             Pbar, dbar, grad = np.zeros((N - 1, M, 3)), np.full((N - 1, M), 10.0), np.zeros((N - 1, M, 3))
         ref_par = []
-        for name in order:
+        for name in order:  # `order` names only tasks with a reference
             if name == "base":
+                assert refs.base is not None
                 xy = np.broadcast_to(refs.base.xy, (N + 1, 2))
                 pos = np.column_stack([xy, np.zeros(N + 1)])
                 yaw = np.zeros((N + 1, 9))
@@ -228,6 +229,7 @@ class IpoptReference:
                     yaw[:, 0] = np.broadcast_to(np.asarray(refs.base.yaw), (N + 1,))
                 ref_par.append(np.concatenate([pos.ravel(), yaw.ravel()]))
             else:
+                assert refs.ee is not None
                 pos = np.broadcast_to(refs.ee.position, (N + 1, 3))
                 rot = np.zeros((N + 1, 9))
                 if refs.ee.rotation is not None:

@@ -20,12 +20,16 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
 
 from core.htmpc.buffered_function import BufferedFunction
 from core.types import NQ
+
+if TYPE_CHECKING:
+    from core.htmpc.level_problem import LevelArrays
 
 log = logging.getLogger(__name__)
 
@@ -177,7 +181,7 @@ class StructuredQP:
         self._opts = opts
         self._call_buffer = BufferedFunction(self.solver, rebind=True)
         self._rescue: BufferedFunction | None = None
-        self.level_templates: dict[tuple, object] = {}
+        self.level_templates: dict[tuple, LevelArrays] = {}
         """The constant part of a level's data per (parameters, damping), built once by `level_problem`."""
         self._solver_s: dict[int, float] = {}
         """casadi's `t_wall_solver` per buffer at its last call (a buffer's statistics accumulate over calls)."""
