@@ -92,8 +92,6 @@ class RuntimeConfig:
     def __post_init__(self) -> None:
         if self.map_kind not in MAP_KINDS:
             raise ValueError(f"map_kind must be one of {MAP_KINDS}, got {self.map_kind!r}")
-        if self.htmpc.constraint not in CONSTRAINT_KINDS:
-            raise ValueError(f"constraint must be 'cbf' or 'edf', got {self.htmpc.constraint!r}")
 
     @property
     def constraint(self) -> ConstraintKind:

@@ -7,7 +7,9 @@ docstring says why we differ.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import typing
+from dataclasses import dataclass, field, fields
+from functools import cache
 from typing import Literal
 
 import numpy as np
@@ -24,6 +26,22 @@ SlackGroups = Literal["sphere", "body", "node"]
 """Collision slacks per node: one per sphere, one per body (base+rack, arm) or one per node."""
 EDFGeometry = Literal["completed", "surface"]
 """What the object map's EDF measures the distance to: completed solid boxes, or observed surfaces (9a)."""
+
+
+@cache
+def _literal_fields(cls: type) -> tuple[tuple[str, tuple[str, ...]], ...]:
+    hints = typing.get_type_hints(cls)
+    return tuple((f.name, typing.get_args(hints[f.name])) for f in fields(cls)
+                 if typing.get_origin(hints[f.name]) is Literal)
+
+
+def check_choices(params: object) -> None:
+    """Refuse a field outside its `Literal` option set: the one check of a closed option, made when the
+    parameter object is built (files, the bridge and Python callers alike)."""
+    for name, choices in _literal_fields(type(params)):
+        value = getattr(params, name)
+        if value not in choices:
+            raise ValueError(f"{type(params).__name__}.{name} must be one of {choices}, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -190,6 +208,9 @@ class HTMPCParams:
     solve_timeout_ms: float = 250.0
     """A step slower than this is discarded: the robot brakes on the shifted previous plan."""
 
+    def __post_init__(self) -> None:
+        check_choices(self)
+
 
 @dataclass(frozen=True)
 class MappingParams:
@@ -341,6 +362,9 @@ class MappingParams:
     def prior(self) -> Posterior:
         """The belief q(l, v) a new object starts with: N(mu0, sigma0²) · Beta(alpha0, beta0)."""
         return Posterior(mu=self.mu0_m, sigma=self.sigma0_m, alpha=self.alpha0, beta=self.beta0)
+
+    def __post_init__(self) -> None:
+        check_choices(self)
 
 
 @dataclass(frozen=True)

@@ -127,8 +127,6 @@ class HTMPC:
         self.robot = robot
         self.params = params or HTMPCParams()
         p = self.params
-        if p.hierarchy not in ("lexicographic", "weighted"):
-            raise ValueError(f"hierarchy must be 'lexicographic' or 'weighted', got {p.hierarchy!r}")
         self.tasks = {"base": BaseTask(p.Q_base), "ee": EETask(p.Q_ee)}
         self.ee_base_task = EEBaseFrameTask(p.Q_ee)
         """The EE task when the reference is in the base frame (`EEReference.frame == 'base'`)."""

@@ -63,7 +63,6 @@ from __future__ import annotations
 
 import logging
 import time
-import typing
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 
@@ -79,14 +78,12 @@ from core.mapping.segmentation import Segment, segment, voxelise
 from core.mapping.tracked_object import TrackedObject
 from core.mapping.visibility import HIT, THROUGH, FrameView, VisibilityCounts, count
 from core.mapping.world_map import TIMING_KEYS
-from core.params import EDFGeometry, MappingParams
+from core.params import MappingParams
 from core.robot.model import RobotModel
 from core.types import DepthFrame, LocalEDF, ObjectMapSnapshot, ObjectStatus, Observation
 
 log = logging.getLogger(__name__)
 
-EDF_GEOMETRIES: tuple[str, ...] = typing.get_args(EDFGeometry)
-"""`MappingParams.edf_geometry`: solid boxes completed where unseen, or the observed surfaces alone (9a)."""
 EDF_PAD_M = 0.5
 """The EDT runs on the window grown by this, so objects just outside still shape the field near its edge."""
 
@@ -97,8 +94,6 @@ class ObjectMapper:
     def __init__(self, robot: RobotModel, params: MappingParams | None = None) -> None:
         self.robot = robot
         self.params = params or MappingParams()
-        if self.params.edf_geometry not in EDF_GEOMETRIES:
-            raise ValueError(f"edf_geometry must be one of {EDF_GEOMETRIES}, got {self.params.edf_geometry!r}")
         self.scene_points = ScenePoints(robot, self.params)
         self.objects: dict[int, TrackedObject] = {}
         self.removed_ids: list[int] = []
