@@ -11,7 +11,8 @@ DEV=0
 [[ "${1:-}" == "--dev" ]] && DEV=1
 
 DEBS=(libusb-1.0-0 libgomp1 libegl1 libgl1 libgl1-mesa-dri libosmesa6)
-[[ $DEV == 1 ]] && DEBS+=(chromium chromium-driver fonts-dejavu-core)
+# nodejs: the pyright wheel runs on it (without it, pyright would fetch a node from the internet)
+[[ $DEV == 1 ]] && DEBS+=(chromium chromium-driver fonts-dejavu-core nodejs)
 
 missing=()
 for pkg in "${DEBS[@]}"; do
