@@ -37,7 +37,8 @@ def test_scrub_play_and_speed_in_the_browser(tmp_path, page):
         q = source.state.q
         wait_for(lambda: np.allclose(studio.robot_view.frames["mobile_base"].position[:2], q[:2], atol=1e-6), 30,
                  "the robot drawn at that time")
-        assert studio.monitor.rows[-1][0] == pytest.approx(source.time)
+        wait_for(lambda: studio.monitor.rows[-1][0] == pytest.approx(source.time), 30,
+                 "the monitor at that time")  # its rows are published after the robot is drawn
         page.get_by_text(f"replay {target - source.start_time:.1f} / 8.0 s").first.wait_for()
         page.screenshot(path=str(ARTIFACTS / "studio_replay_scrubbed.png"))
         choose(page, "Replay speed (×)", "4")
