@@ -133,65 +133,63 @@ class LocalEDF:
     cutoff: float
 
     def _cell(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The corner values (..., 2, 2, 2) of the cell holding each point (indexed [z, y, x]), the point's
+        fraction (..., 3) across it, and whether it is inside the grid: one flat gather of the 8 corners."""
         g = (np.asarray(p, dtype=float) - self.origin) / self.voxel
-        shape = np.array(self.values.shape)
+        values = self.values
+        shape = np.array(values.shape)
         inside = np.all((g >= 0.0) & (g <= shape - 1), axis=-1)
-        i0 = np.clip(np.floor(g).astype(int), 0, np.maximum(shape - 2, 0))
+        i0 = np.clip(np.floor(g), 0, np.maximum(shape - 2, 0))
         f = np.clip(g - i0, 0.0, 1.0)
-        return i0, f, inside
-
-    def _corners(self, i0: np.ndarray) -> np.ndarray:
-        v = self.values
-        x, y, z = i0[..., 0], i0[..., 1], i0[..., 2]
-        return np.stack(
-            [v[x, y, z], v[x + 1, y, z], v[x, y + 1, z], v[x + 1, y + 1, z],
-             v[x, y, z + 1], v[x + 1, y, z + 1], v[x, y + 1, z + 1], v[x + 1, y + 1, z + 1]],
-            axis=-1,
-        )
+        grid = np.ascontiguousarray(values)
+        stride = np.array(grid.strides) // grid.itemsize  # elements per cell step along x, y, z
+        pick = np.arange(2)
+        corner = pick[:, None, None] * stride[2] + pick[None, :, None] * stride[1] + pick[None, None, :] * stride[0]
+        first = i0.astype(np.intp) @ stride
+        return grid.reshape(-1)[first[..., None, None, None] + corner], f, inside
 
     def distance(self, p: np.ndarray) -> np.ndarray:
         """Trilinearly interpolated distance at points p (..., 3) → (...)."""
-        i0, f, inside = self._cell(p)
-        return self._interpolate(self._corners(i0), f, inside)
-
-    def distance_and_gradient(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """`distance(p)` and `gradient(p)` from one cell lookup (half the work of the two calls)."""
-        i0, f, inside = self._cell(p)
-        c = self._corners(i0)
-        return self._interpolate(c, f, inside), self._gradient(c, f, inside)
-
-    def _interpolate(self, c: np.ndarray, f: np.ndarray, inside: np.ndarray) -> np.ndarray:
-        fx, fy, fz = f[..., 0], f[..., 1], f[..., 2]
-        c00 = c[..., 0] * (1 - fx) + c[..., 1] * fx
-        c10 = c[..., 2] * (1 - fx) + c[..., 3] * fx
-        c01 = c[..., 4] * (1 - fx) + c[..., 5] * fx
-        c11 = c[..., 6] * (1 - fx) + c[..., 7] * fx
-        d = (c00 * (1 - fy) + c10 * fy) * (1 - fz) + (c01 * (1 - fy) + c11 * fy) * fz
-        return np.where(inside, d, self.cutoff)
+        c, f, inside = self._cell(p)
+        return np.where(inside, _lerp_z(_lerp_y(_lerp_x(c, f), f), f), self.cutoff)
 
     def gradient(self, p: np.ndarray) -> np.ndarray:
         """Gradient of the trilinear interpolant at points p (..., 3) → (..., 3), per metre."""
-        i0, f, inside = self._cell(p)
-        return self._gradient(self._corners(i0), f, inside)
+        return self.distance_and_gradient(p)[1]
 
-    def _gradient(self, c: np.ndarray, f: np.ndarray, inside: np.ndarray) -> np.ndarray:
-        fx, fy, fz = f[..., 0], f[..., 1], f[..., 2]
-        dx = ((c[..., 1] - c[..., 0]) * (1 - fy) + (c[..., 3] - c[..., 2]) * fy) * (1 - fz) + (
-            (c[..., 5] - c[..., 4]) * (1 - fy) + (c[..., 7] - c[..., 6]) * fy
-        ) * fz
-        dy = ((c[..., 2] - c[..., 0]) * (1 - fx) + (c[..., 3] - c[..., 1]) * fx) * (1 - fz) + (
-            (c[..., 6] - c[..., 4]) * (1 - fx) + (c[..., 7] - c[..., 5]) * fx
-        ) * fz
-        c0 = (c[..., 0] * (1 - fx) + c[..., 1] * fx) * (1 - fy) + (c[..., 2] * (1 - fx) + c[..., 3] * fx) * fy
-        c1 = (c[..., 4] * (1 - fx) + c[..., 5] * fx) * (1 - fy) + (c[..., 6] * (1 - fx) + c[..., 7] * fx) * fy
-        dz = c1 - c0
+    def distance_and_gradient(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """`distance(p)` and `gradient(p)` from one cell lookup (half the work of the two calls)."""
+        c, f, inside = self._cell(p)
+        along_x = _lerp_x(c, f)  # (..., z, y)
+        along_xy = _lerp_y(along_x, f)  # (..., z)
+        d = _lerp_z(along_xy, f)
+        dx = _lerp_z(_lerp_y(c[..., 1] - c[..., 0], f), f)
+        dy = _lerp_z(_lerp_x(c[..., 1, :] - c[..., 0, :], f), f)
+        dz = along_xy[..., 1] - along_xy[..., 0]
         grad = np.stack([dx, dy, dz], axis=-1) / self.voxel
-        return np.where(inside[..., None], grad, 0.0)
+        return np.where(inside, d, self.cutoff), np.where(inside[..., None], grad, 0.0)
 
     @property
     def upper(self) -> np.ndarray:
         """Far corner of the grid (m)."""
         return self.origin + self.voxel * (np.array(self.values.shape) - 1)
+
+
+def _lerp_x(c: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Linear interpolation over the last axis (x, of 2) at the fraction f[..., 0]."""
+    fx = f[..., 0].reshape(f.shape[:-1] + (1,) * (c.ndim - f.ndim))
+    return c[..., 0] * (1 - fx) + c[..., 1] * fx
+
+
+def _lerp_y(c: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Linear interpolation over the last axis (y, of 2) at the fraction f[..., 1]."""
+    fy = f[..., 1].reshape(f.shape[:-1] + (1,) * (c.ndim - f.ndim))
+    return c[..., 0] * (1 - fy) + c[..., 1] * fy
+
+
+def _lerp_z(c: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Linear interpolation over the last axis (z, of 2) at the fraction f[..., 2]."""
+    return c[..., 0] * (1 - f[..., 2]) + c[..., 1] * f[..., 2]
 
 
 @dataclass(frozen=True)
