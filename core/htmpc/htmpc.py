@@ -118,6 +118,8 @@ class StepResult:
     """(q, v, a) of each level's QP solution, in order (the last is the plan)."""
     qp_iterations: int = 0
     """HPIPM iterations summed over the levels (rescue attempts included)."""
+    hpipm_ms: float = 0.0
+    """HPIPM's own time (casadi's `t_wall_solver`) summed over the levels: the rest of a step is Python."""
 
 
 class HTMPC:
@@ -216,7 +218,7 @@ class HTMPC:
         bounds: list[LexBound] = []
         tol = lex_tolerances(p)
         best, level_ms, level_errors, solutions = None, [], [], []
-        failed, message, qp_iterations = None, "", 0
+        failed, message, qp_iterations, hpipm_ms = None, "", 0, 0.0
         guess = None
         for i, level in enumerate(levels):
             n_lex = sum(b.lin.e0.shape[1] for b in bounds)
@@ -232,6 +234,7 @@ class HTMPC:
             sol = qp.solve(arrays.h, arrays.g, arrays.a, arrays.lba, arrays.uba, lbx, ubx, guess)
             level_ms.append(sol.solve_ms)
             qp_iterations += sol.iterations
+            hpipm_ms += sol.hpipm_ms if np.isfinite(sol.hpipm_ms) else 0.0
             self.counts.qp_rescues += sol.rescued
             if not sol.success:
                 self.counts.level1_qp_failures += i == 0
@@ -251,11 +254,11 @@ class HTMPC:
                 bounds.append(LexBound(lins[name], e))
         if best is None:
             return StepResult(it.q, it.v, it.a, np.zeros(0), level_ms, level_errors, 0, message, kin, lins, it.q,
-                              qp_iterations=qp_iterations)
+                              qp_iterations=qp_iterations, hpipm_ms=hpipm_ms)
         q, v, a, s = best
         min_h = float(rows.h[0].min()) if rows is not None else float("nan")
         return StepResult(q, v, a, s, level_ms, level_errors, failed, message, kin, lins, it.q, min_h,
-                          level_solutions=solutions, qp_iterations=qp_iterations)
+                          level_solutions=solutions, qp_iterations=qp_iterations, hpipm_ms=hpipm_ms)
 
     def _collision_rows(self, x0: np.ndarray, it: _Iterate, kin: HorizonKinematics,
                         edf: DistanceField) -> tuple[CollisionRows, StepRows]:
@@ -324,12 +327,14 @@ class HTMPC:
         damping = p.sqp_damping_on_switch if iters > 1 else p.sqp_damping
         step, level_ms = None, np.zeros(len(order) if p.hierarchy == "lexicographic" else 1)
         sqp_iterations = qp_iterations = 0
+        hpipm_ms = 0.0
         try:
             for _ in range(max(1, iters)):
                 step = self.iterate(x0, it, order, refs, edf, damping)
                 level_ms[: len(step.level_ms)] += step.level_ms
                 sqp_iterations += 1
                 qp_iterations += step.qp_iterations
+                hpipm_ms += step.hpipm_ms
                 if step.failed_level == 0:
                     break
                 self._adapt_trust(step, order, refs)
@@ -348,7 +353,8 @@ class HTMPC:
             self.counts.timeouts += 1
             return self._fallback(state, n, f"solve took {elapsed:.0f} ms > {p.solve_timeout_ms:.0f} ms")
         plan = self._plan(state, order, refs, step, tuple(level_ms),
-                          {"sqp_iterations": float(sqp_iterations), "qp_iterations": float(qp_iterations)})
+                          {"sqp_iterations": float(sqp_iterations), "qp_iterations": float(qp_iterations),
+                           "hpipm_ms": hpipm_ms})
         if not plan_is_safe(plan, self.robot.limits, tol=1e-4):
             self.counts.other_fallbacks += 1
             return self._fallback(state, n, "solution outside the limits")
@@ -415,7 +421,7 @@ class HTMPC:
     def _plan(self, state: RobotState, order: list[str], refs: References, step: StepResult,
               level_ms: tuple[float, ...], extras: dict[str, float]) -> Plan:
         """The plan of a step (its EE path from the FK the trust-region test already evaluated); `extras` adds to
-        the plan's diagnostics (SQP and QP iterations of the step)."""
+        the plan's diagnostics (SQP and QP iterations of the step, HPIPM's own time)."""
         p = self.params
         kin, lins, q_bar = step.kin, step.lins, step.q_bar
         assert kin is not None and lins is not None and q_bar is not None, "a step that produced a plan is whole"
