@@ -41,11 +41,6 @@ ROOT = Path(__file__).parents[2]
 REPORTS_DIR = ROOT / "reports"
 RAY_EXCLUDES = [".venv", ".git", "reports", "test-artifacts", "bench/results", "runs", "*.egg-info"]
 SINGLE_THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-TRIALS_PER_WORKER = 20
-"""A pool worker is replaced after this many trials, a bound on whatever a trial leaves behind. The full E2
-(450 trials on 2 workers) once grew each worker to 9 GB in 28 minutes: reference cycles kept finished runs'
-maps and frames until a full collection, which `run_one` now makes after each trial. Each result records
-`worker_rss_gb`, the worker's resident memory after it."""
 
 TrialFn = Callable[[dict], dict]
 
@@ -148,7 +143,10 @@ def run_one(trial: Trial) -> dict:
         log.exception("trial %s failed", trial.params)
         out = {"error": f"{type(err).__name__}: {err}", "traceback": traceback.format_exc(limit=8)}
     wall_s = time.perf_counter() - t0
-    gc.collect()  # a finished run's reference cycles hold its maps and frames until a full collection
+    # A finished run's reference cycles hold its maps and frames until a full collection: without this the
+    # full E2 grew each pool worker to 9 GB in 28 minutes. (Replacing workers with `max_tasks_per_child`
+    # is no way out on Python 3.11: the pool hung once its first workers retired.)
+    gc.collect()
     return {**trial.params, **out, "wall_s": wall_s, "worker_rss_gb": _rss_gb()}
 
 
@@ -194,7 +192,7 @@ def _on_pool(trials: list[Trial], workers: int) -> Iterator[tuple[int, dict]]:
     for key, value in SINGLE_THREAD_ENV.items():
         os.environ.setdefault(key, value)  # inherited by the spawned workers
     with ProcessPoolExecutor(max_workers=min(workers, len(trials)), mp_context=get_context("spawn"),
-                             initializer=quiet_logs, max_tasks_per_child=TRIALS_PER_WORKER) as pool:
+                             initializer=quiet_logs) as pool:
         futures = {pool.submit(run_one, t): i for i, t in enumerate(trials)}
         for future in as_completed(futures):
             yield futures[future], future.result()
