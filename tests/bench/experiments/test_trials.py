@@ -27,11 +27,26 @@ def test_a_crashed_trial_is_kept_with_its_error():
     assert out[1]["error"] == "ValueError: negative x" and "y" not in out[1]
 
 
+# Measurements of the process that ran a trial, not results of the trial: they differ between runners.
+PER_PROCESS = ("wall_s", "traceback", "worker_rss_gb")
+
+
 def test_process_pool_matches_in_process():
     trials = [Trial(square, {"x": x}) for x in range(-1, 5)]
-    strip = [{k: v for k, v in r.items() if k not in ("wall_s", "traceback")} for r in run_trials(trials, workers=1)]
-    pooled = [{k: v for k, v in r.items() if k not in ("wall_s", "traceback")} for r in run_trials(trials, workers=2)]
-    assert pooled == strip
+    inline = run_trials(trials, workers=1)
+    pooled = run_trials(trials, workers=2)
+    assert [_results(r) for r in pooled] == [_results(r) for r in inline]
+
+
+def test_each_result_records_its_workers_memory():
+    """`worker_rss_gb` lets a long sweep show whether its workers grow (the full E2 once reached 9 GB each)."""
+    for runner_workers in (1, 2):
+        out = run_trials([Trial(square, {"x": x}) for x in range(3)], workers=runner_workers)
+        assert all(0.0 < r["worker_rss_gb"] < 100.0 for r in out)
+
+
+def _results(result: dict) -> dict:
+    return {k: v for k, v in result.items() if k not in PER_PROCESS}
 
 
 @pytest.mark.slow
