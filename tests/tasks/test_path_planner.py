@@ -59,3 +59,14 @@ def test_blocked_waypoint_skipped_and_goal_snapped():
     assert "skipped" in notes[0] and "going to" in notes[1]
     assert np.linalg.norm(path[-1] - near_face) < 0.3
     assert grid.is_free(path[-1])
+
+
+def test_a_goal_in_the_start_cell_is_still_the_path_end():
+    """A robot already inside its goal's grid cell gets a path to the goal itself, not one that stops where it
+    stands (that once held the base up to a cell's diagonal off its goal and logged a 0 m "goal moved")."""
+    grid = OccupancyGrid.from_points(np.zeros((0, 3)), (-5, 5, -5, 5), 0.1, 0.6)
+    for start, goal in (([0.03, 0.02], [0.0, 0.0]), ([0.03, 0.02], [0.08, 0.09]), ([0.05, 0.05], [0.05, 0.05])):
+        assert grid.cell(np.array(start)) == grid.cell(np.array(goal))
+        path = plan_path(grid, np.array(start), [np.array(goal)])
+        np.testing.assert_allclose(path[0], start)
+        np.testing.assert_allclose(path[-1], goal)
