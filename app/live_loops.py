@@ -1,6 +1,7 @@
 """The live threads of a `ClosedLoop`: they only schedule its stages, on wall-clock time.
 
-- physics (simulation only): `backend.step` of 10 ms of sim time, paced by `speed`, frozen while paused;
+- physics (simulation only): `backend.step` of 10 ms of sim time, paced by `speed`, frozen while paused; it
+  first makes the cameras' renderers, and the other loops start after that (`CAMERA_SETUP_WAIT_S`);
 - io: observe + command at the command rate (100 Hz), deadline-paced so the rate holds on average;
 - mapping: integrate depth frames as they arrive (only the newest of each camera when behind), the object
   and voxel maps in a process of their own (`app/map_process.py`: mapping held the GIL these loops need);
@@ -44,6 +45,10 @@ STALL_AFTER_S = {"physics": 5.0, "io": 5.0, "mapping": 15.0, "control": 5.0, "pu
 a loaded machine does not fault spuriously (the first physics step, which creates the cameras' GL
 contexts, took 1.5 s at load 8 on 2 cores); a late control loop is caught sooner by the plan's age
 (`MAX_PLAN_AGE_S`), and the backends' own watchdogs stop a robot whose commands stop."""
+CAMERA_SETUP_WAIT_S = 10.0
+"""Live start: the other loops start once the physics thread has made the cameras' GL contexts (or after
+this long, s). Making a context holds the GIL for about 0.3 s: a control step running meanwhile waited it
+out and overran its 250 ms budget (measured at the start of live runs, 1 in 3 on a quiet machine)."""
 MAX_PLAN_AGE_S = 2.0
 """Live: running on the plan of a control step older than this (robot s) means the control loop is not
 keeping up: a fault, so the robot brakes along the plan instead of running to the end of its 3 s horizon."""
@@ -147,6 +152,8 @@ class LiveLoops:
         self.control_period_s = 1.0 / p.control_rate_hz
         self.command_period_s = 1.0 / p.command_rate_hz
         self._control_due = threading.Event()
+        self._cameras_ready = threading.Event()
+        """Set once the physics thread has made the cameras' renderers (`SimRobot.prepare_cameras`)."""
         self._next_control_t = loop.state.t
         self.control_steps = 0
         self.control_lateness_s: deque[float] = deque(maxlen=10000)
@@ -175,7 +182,14 @@ class LiveLoops:
                                   + NICENESS)
         elif map_process is not None:
             map_process.close(keep=False)
-        for loop in [*self.loops, self.watchdog]:
+        first, rest = self.loops[:1], self.loops[1:]
+        if first[0].name != "physics":
+            first, rest = [], self.loops
+        for loop in first:
+            loop.start()
+        if first and not self._cameras_ready.wait(CAMERA_SETUP_WAIT_S):
+            log.warning("cameras not ready within %.0f s: starting the other loops anyway", CAMERA_SETUP_WAIT_S)
+        for loop in [*rest, self.watchdog]:
             loop.start()
 
     def stop(self, timeout_s: float = 3.0) -> list[str]:
@@ -207,7 +221,14 @@ class LiveLoops:
 
     def _physics_tick(self) -> None:
         backend = self.loop.backend
-        if isinstance(backend, SimRobot) and self.loop.take_physics_step(PHYSICS_STEP_S):
+        if not isinstance(backend, SimRobot):
+            return
+        if not self._cameras_ready.is_set():
+            try:
+                backend.prepare_cameras()
+            finally:  # a failure faults the run; start() need not wait it out
+                self._cameras_ready.set()
+        if self.loop.take_physics_step(PHYSICS_STEP_S):
             backend.step(PHYSICS_STEP_S)
 
     def _io_tick(self) -> None:

@@ -79,13 +79,18 @@ class DepthCamera:
         t, depth = self.capture()
         return self.frame(t, depth, self.world.robot.camera_pose(self.world.state().q, self.name))
 
-    def _segmentation(self) -> np.ndarray:
-        """MuJoCo's segmentation render (H×W×2: object id, object type) of the current scene (world lock held)."""
+    def _ensure_segmentation(self) -> mujoco.Renderer:
+        """The segmentation renderer, made anew when the model changed."""
         seg = self._seg_renderer
         if seg is None or self._version != self.world.model_version:
             self._ensure()
             seg = self._seg_renderer = mujoco.Renderer(self.world.model, self.params.height_px, self.params.width_px)
             seg.enable_segmentation_rendering()
+        return seg
+
+    def _segmentation(self) -> np.ndarray:
+        """MuJoCo's segmentation render (H×W×2: object id, object type) of the current scene (world lock held)."""
+        seg = self._ensure_segmentation()
         seg.update_scene(self.world.data, camera=f"camera_{self.name}", scene_option=self._options)
         return seg.render()
 
@@ -99,6 +104,15 @@ class DepthCamera:
         for g, box_id in lookup.items():
             out[geom_types & (seg[..., 0] == g)] = box_id
         return out
+
+    def prepare(self) -> None:
+        """Make the renderers now (and the segmentation one if the scene has dark boxes), from the thread
+        that will render: making a GL context holds the GIL for about 0.3 s, which other threads, the
+        control loop among them, would otherwise wait out at the first render."""
+        with self.world.lock:
+            self._ensure()
+            if len(self.world.dark_geoms()):
+                self._ensure_segmentation()
 
     def close(self) -> None:
         """Free the GL resources."""

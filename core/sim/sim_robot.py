@@ -102,6 +102,11 @@ class SimRobot:
             self._render_due()
             self._stamp_due()
 
+    def prepare_cameras(self) -> None:
+        """Make every camera's renderers now, from the thread that steps and renders (`DepthCamera.prepare`)."""
+        for cam in self.cameras.values():
+            cam.prepare()
+
     def _check_watchdog(self) -> None:
         if np.any(self._command) and self.world.time - self._last_command_t > self.command_timeout_s - 1e-9:
             log.warning("no command for %.2f s: stopping", self.command_timeout_s)

@@ -4,6 +4,8 @@ Reset, and Reset starts every loop anew."""
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import pytest
 
@@ -100,5 +102,31 @@ def test_a_loop_that_ends_is_a_fault_not_a_silent_death():
         assert all(loop.alive for loop in rt.live.loops) and rt.fault is None
         published = rt.live.stats()["publish"].iterations
         assert wait_until(lambda: rt.live.stats()["publish"].iterations > published + 5, timeout_s=10)
+    finally:
+        rt.shutdown()
+
+
+def test_the_cameras_are_made_by_the_physics_thread_before_the_other_loops_start(monkeypatch):
+    """Making a camera's GL context holds the GIL for ~0.3 s: a control step running meanwhile waited it out
+    and overran its 250 ms budget. So the physics thread, which renders, makes them first, and `start_live`
+    starts the other loops only then."""
+    from app.runtime import Runtime, RuntimeConfig
+    from core.sim.sim_robot import SimRobot
+
+    made_in: list[str] = []
+    prepare = SimRobot.prepare_cameras
+
+    def record(self: SimRobot) -> None:
+        made_in.append(threading.current_thread().name)
+        prepare(self)
+
+    monkeypatch.setattr(SimRobot, "prepare_cameras", record)
+    rt = Runtime(RuntimeConfig(map_kind="ground_truth"))
+    rt.start_live()
+    try:
+        assert made_in == ["physics"]
+        cameras = rt.backend.cameras.values()
+        assert cameras and all(cam._renderer is not None for cam in cameras)
+        assert all(loop.alive for loop in rt.live.loops)
     finally:
         rt.shutdown()
