@@ -126,11 +126,9 @@ def plan_path(grid: OccupancyGrid, start_xy: np.ndarray, goals_xy: list[np.ndarr
         if grid.blocked[s_cell]:
             s_cell = _nearest_free(grid, s_cell)
         cells = astar(grid, s_cell, g_cell)
-        pts = np.array([grid.centre(c) for c in cells])
-        if len(pts) == 1:  # start and goal share a cell: the one point would stand for both
-            pieces.append(goal[None])
-        else:
-            pts[0], pts[-1] = (here if grid.is_free(here) else pts[0]), goal
-            pieces.append(shortcut(grid, pts)[1:])
+        start = here if grid.is_free(here) else grid.centre(cells[0])
+        # the ends are the start and the goal themselves, also when both lie in one cell
+        pts = np.array([start, *(grid.centre(c) for c in cells[1:-1]), goal])
+        pieces.append(shortcut(grid, pts)[1:])
         here = goal
     return resample(np.concatenate(pieces), spacing_m)
