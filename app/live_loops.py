@@ -163,9 +163,11 @@ class LiveLoops:
         self.loops = [SupervisedLoop("io", self._io_tick, fault, self._io_period),
                       SupervisedLoop("mapping", self._map_tick, fault), self.control,
                       SupervisedLoop("publish", self._publish, fault, lambda: 1.0 / self.publish_hz)]
+        self.physics: SupervisedLoop | None = None
         if isinstance(loop.backend, SimRobot):
-            self.loops.insert(0, SupervisedLoop("physics", self._physics_tick, fault, self._physics_period,
-                                                on_exit=loop.backend.close))  # GL contexts belong to that thread
+            self.physics = SupervisedLoop("physics", self._physics_tick, fault, self._physics_period,
+                                          on_exit=loop.backend.close)  # GL contexts belong to that thread
+            self.loops.insert(0, self.physics)
         self.watchdog = SupervisedLoop("watchdog", self._watch, fault, lambda: WATCHDOG_PERIOD_S)
 
     def start(self, map_process: MapProcess | None = None) -> None:
@@ -182,15 +184,13 @@ class LiveLoops:
                                   + NICENESS)
         elif map_process is not None:
             map_process.close(keep=False)
-        first, rest = self.loops[:1], self.loops[1:]
-        if first[0].name != "physics":
-            first, rest = [], self.loops
-        for loop in first:
-            loop.start()
-        if first and not self._cameras_ready.wait(CAMERA_SETUP_WAIT_S):
-            log.warning("cameras not ready within %.0f s: starting the other loops anyway", CAMERA_SETUP_WAIT_S)
-        for loop in [*rest, self.watchdog]:
-            loop.start()
+        if self.physics is not None:
+            self.physics.start()
+            if not self._cameras_ready.wait(CAMERA_SETUP_WAIT_S):
+                log.warning("cameras not ready within %.0f s: starting the other loops anyway", CAMERA_SETUP_WAIT_S)
+        for loop in [*self.loops, self.watchdog]:
+            if loop is not self.physics:
+                loop.start()
 
     def stop(self, timeout_s: float = 3.0) -> list[str]:
         """Stop every thread; the names of those that did not end within `timeout_s` each (a map process a
