@@ -161,9 +161,9 @@ def serve(args) -> int:
 
 
 def run_headless(args) -> int:
-    from app.problems import summary_line
-    from app.report import write_report
+    from app.recording.report import write_report
     from app.runtime import Runtime
+    from app.runtime.problems import summary_line
 
     config = _config(args, perception_delay_s=args.perception_delay, actuation_delay_s=args.actuation_delay)
     runtime = Runtime(config)
@@ -202,7 +202,7 @@ def run_headless(args) -> int:
 
 
 def replay(args) -> int:
-    from app.replay import ReplaySource
+    from app.recording.replay import ReplaySource
     from app.ui.studio import Studio
 
     source = ReplaySource(args.file)

@@ -32,7 +32,7 @@ import numpy as np
 import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported)
 from app.bridge.server import BridgeServer
 from app.runtime import Runtime, RuntimeConfig
-from app.snapshot import RunState
+from app.runtime.snapshot import RunState
 
 ROOT = Path(__file__).parents[1]
 DRIVER_SILENT_S = 0.14
@@ -58,7 +58,7 @@ class DrivingResult:
     commands_superseded: int = 0
     cpu_s: float = 0.0
     loop_niceness: float = float("nan")
-    """Niceness of the live loops' threads (they ask for `RuntimeConfig.live_niceness`, app/priority.py)."""
+    """Niceness of the live loops' threads (they ask for `RuntimeConfig.live_niceness`, app/thread_priority.py)."""
     driver_niceness: float = float("nan")
     map_niceness: float = float("nan")
     load_before: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -164,7 +164,7 @@ def _collect_control(rt: Runtime, result: DrivingResult) -> None:
 
 
 def _note_niceness(rt: Runtime, driver: subprocess.Popen, result: DrivingResult) -> None:
-    """The priorities the run had (app/priority.py): live loops, the driver, the mapping process."""
+    """The priorities the run had (app/thread_priority.py): live loops, the driver, the mapping process."""
     def nice(tid: int | None) -> float:
         try:
             return float(os.getpriority(os.PRIO_PROCESS, tid)) if tid else float("nan")
@@ -188,7 +188,7 @@ def _driver_silent(stale_at: np.ndarray, sent: np.ndarray) -> int:
 def drive(duration_s: float, burners: int = 2, burner_niceness: int = 0, raise_priority: bool = True) -> DrivingResult:
     """Drive through the bridge for `duration_s` with `burners` CPU burners beside it (at `burner_niceness`
     below this process: 0 is the same priority, 10 background work); without `raise_priority`, the runtime
-    and the driver stay at this process's priority (`app/priority.py` off: the comparison)."""
+    and the driver stay at this process's priority (`app/thread_priority.py` off: the comparison)."""
     result = DrivingResult(duration_s, load_before=os.getloadavg())
     with tempfile.TemporaryDirectory() as tmp, burning(burners, burner_niceness):
         bridge = BridgeServer(port=0, token=secrets.token_urlsafe(24), token_file=Path(tmp) / "token")

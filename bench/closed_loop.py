@@ -17,7 +17,7 @@ import numpy as np
 
 import core.sim  # noqa: F401  (GL backend first)
 from app.runtime import Runtime, RuntimeConfig
-from app.snapshot import RunState
+from app.runtime.snapshot import RunState
 from bench.bridge_driving import drive
 from bench.report import percentile, write_result
 from core.params import MappingParams
@@ -116,7 +116,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--burner-nice", type=int, default=0,
                         help="niceness of the CPU burners relative to this process (0: same priority; 10: background)")
     parser.add_argument("--normal-priority", action="store_true",
-                        help="runtime and driver at normal priority (app/priority.py off), for comparison")
+                        help="runtime and driver at normal priority (app/thread_priority.py off), for comparison")
     args = parser.parse_args(argv)
     figures: dict[str, float] = {}
     if not args.bridge_only:

@@ -29,7 +29,7 @@ from rich.progress import Progress
 import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported)
 from app.bridge.server import BridgeServer
 from app.runtime import Runtime, RuntimeConfig
-from app.snapshot import RunState
+from app.runtime.snapshot import RunState
 from bench.report import bench_args, write_result
 from core.sim.world import SceneEditError
 from tasks.sequence_file import EXAMPLES_DIR, load_sequence

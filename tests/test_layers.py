@@ -80,7 +80,7 @@ def graph() -> dict[str, list[tuple[int, str]]]:
 
 def test_the_graph_covers_the_tree(graph):
     assert len(graph) > 100
-    assert any(_within(name, "core.htmpc") for _, name in graph["app.components"])
+    assert any(_within(name, "core.htmpc") for _, name in graph["app.runtime.components"])
     assert any(_within(name, "core.mapping") for _, name in graph["core.mapping.object_mapper"])
 
 

@@ -17,7 +17,7 @@ import threading
 import time
 from typing import TYPE_CHECKING
 
-from app.snapshot import RunState, Snapshot
+from app.runtime.snapshot import RunState, Snapshot
 
 if TYPE_CHECKING:
     from app.runtime import Runtime

@@ -25,8 +25,8 @@ from app.bridge.protocol import CommandReason
 from app.bridge.robot_link import STALE_AFTER_S, RobotLink
 from app.bridge.watchdog import StaleStateWatchdog
 from app.bridge.web_app import create_app
-from app.problems import ProblemKind
-from app.snapshot import RunState
+from app.runtime.problems import ProblemKind
+from app.runtime.snapshot import RunState
 
 if TYPE_CHECKING:
     from app.runtime import Runtime

@@ -30,7 +30,7 @@ import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported
 from app.bridge.auth import TOKEN_ENV, read_token
 from app.bridge.driver_client import DriverClient
 from app.bridge.protocol import Command, DepthEncoding
-from app.priority import set_thread_niceness
+from app.thread_priority import set_thread_niceness
 from core.params import SimParams
 from core.robot.model import RobotModel
 from core.sim.scene import load_scene

@@ -20,7 +20,7 @@ from app.bridge.protocol import (
     finite_or_none,
 )
 from app.bridge.robot_link import RobotLink
-from app.snapshot import Snapshot
+from app.runtime.snapshot import Snapshot
 from core.sim.scene import Scene
 from core.types import Plan
 from tasks.sequencer import SubtaskProgress

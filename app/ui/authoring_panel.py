@@ -16,9 +16,9 @@ import numpy as np
 import viser
 import viser.transforms as vtf
 
-from app.replay import ReplaySource
+from app.recording.replay import ReplaySource
 from app.runtime import Runtime
-from app.snapshot import Snapshot
+from app.runtime.snapshot import Snapshot
 from app.target_check import check_targets
 from app.ui.authoring import (
     PRIORITY_CHOICES,

@@ -3,7 +3,7 @@ without emoji fonts draws a missing one as an empty box). A browser test checks 
 
 from __future__ import annotations
 
-from app.snapshot import RunState
+from app.runtime.snapshot import RunState
 
 RUN_STATE = {RunState.RUNNING: "▶", RunState.PAUSED: "‖", RunState.ESTOP: "⊘", RunState.FINISHED: "✔",
              RunState.FAILED: "✖", RunState.IDLE: "■", RunState.FAULT: "⚠"}

@@ -10,7 +10,7 @@ import numpy as np
 import trimesh
 import viser
 
-from app.snapshot import Snapshot
+from app.runtime.snapshot import Snapshot
 from app.ui.colors import consistency_rgb, distance_rgb
 from app.ui.robot_view import wxyz
 from core.params import MappingParams

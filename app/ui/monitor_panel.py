@@ -9,7 +9,7 @@ import numpy as np
 import viser
 import viser.uplot as uplot
 
-from app.snapshot import Snapshot
+from app.runtime.snapshot import Snapshot
 
 HISTORY = 300
 MAX_OBJECTS = 6

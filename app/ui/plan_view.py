@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import viser
 
-from app.snapshot import Snapshot
+from app.runtime.snapshot import Snapshot
 
 
 def _segments(points: np.ndarray) -> np.ndarray:

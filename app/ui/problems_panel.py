@@ -1,12 +1,12 @@
 """The problems panel: QP failures, fallback plans, slow solves, faults, stale state and watchdog events, with
-counts and times (`app.problems`); a one-line summary stays in view under the status."""
+counts and times (`app.runtime.problems`); a one-line summary stays in view under the status."""
 
 from __future__ import annotations
 
 import viser
 
-from app.problems import ProblemCount, ProblemKind
-from app.snapshot import Snapshot
+from app.runtime.problems import ProblemCount, ProblemKind
+from app.runtime.snapshot import Snapshot
 from app.ui import glyphs
 
 

@@ -8,7 +8,7 @@ from collections import deque
 import numpy as np
 import viser
 
-from app.snapshot import RunState, Snapshot
+from app.runtime.snapshot import RunState, Snapshot
 from app.target_check import nearest_obstacle, snapshot_obstacles
 from app.ui import glyphs
 from app.ui.colors import NamedColour

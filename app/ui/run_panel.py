@@ -6,9 +6,9 @@ from typing import TypeVar
 
 import viser
 
-from app.replay import ReplaySource
+from app.recording.replay import ReplaySource
 from app.runtime import CONSTRAINT_KINDS, MAP_KINDS, Runtime
-from app.snapshot import RunState, Snapshot
+from app.runtime.snapshot import RunState, Snapshot
 from app.ui.notify import guarded
 
 T = TypeVar("T")

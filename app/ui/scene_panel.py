@@ -12,9 +12,9 @@ import math
 import numpy as np
 import viser
 
-from app.replay import ReplaySource
+from app.recording.replay import ReplaySource
 from app.runtime import Runtime
-from app.snapshot import Snapshot
+from app.runtime.snapshot import Snapshot
 from app.ui.notify import guarded, notify_all
 from core.sim.scene import Box, parse_scene, scene_to_yaml
 from core.types import vec3

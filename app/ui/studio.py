@@ -7,9 +7,9 @@ import logging
 import threading
 from dataclasses import dataclass
 
-from app.replay import ReplaySource
+from app.recording.replay import ReplaySource
 from app.runtime import Runtime
-from app.snapshot import Snapshot
+from app.runtime.snapshot import Snapshot
 from app.ui.access import PageAccess, guarded_viser_server
 from app.ui.authoring_panel import AuthoringPanel
 from app.ui.map_view import MapView

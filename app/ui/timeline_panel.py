@@ -1,12 +1,12 @@
 """The replay timeline: a slider over the recorded run's time (robot, map with E[v], plans and plots at that
-time), play/pause and speed. Shown when the studio replays a recording (`app.replay.ReplaySource`)."""
+time), play/pause and speed. Shown when the studio replays a recording (`app.recording.replay.ReplaySource`)."""
 
 from __future__ import annotations
 
 import viser
 
-from app.replay import ReplaySource
-from app.snapshot import Snapshot
+from app.recording.replay import ReplaySource
+from app.runtime.snapshot import Snapshot
 from app.ui.monitor_panel import HISTORY, MonitorPanel
 from app.ui.notify import guarded
 

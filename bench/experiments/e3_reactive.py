@@ -36,7 +36,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from app.runtime import Runtime
-from app.snapshot import RunState
+from app.runtime.snapshot import RunState
 from bench.experiments.avoidability import Push, avoidable_by
 from bench.experiments.measures import (
     body_distance,

@@ -35,7 +35,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from app.runtime import Runtime
-from app.snapshot import RunState
+from app.runtime.snapshot import RunState
 from bench.experiments.measures import box_in_view, phantoms, run_metrics, solver_figures
 from bench.experiments.report_files import (
     draw_boxes,

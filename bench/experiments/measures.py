@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from app.run_log import RunLog
-from app.snapshot import RunState
+from app.runtime.run_log import RunLog
+from app.runtime.snapshot import RunState
 from core.htmpc.htmpc import SolveCounts
 from core.sim.scene import Box
 from core.sim.world import CollisionEvent, SimWorld

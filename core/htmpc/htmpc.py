@@ -15,7 +15,7 @@ and `enforce_timeout` (False in lockstep runs: simulated time waits for the solv
 exception of any type, a non-finite state or map, a slow solve or an out-of-limit solution gives a braking
 plan along the last plan handed out (status FALLBACK or STOPPING, the reason in `message`; safety.py);
 `counts` tallies them (`SolveCounts`). One solve at a time per instance: the kinematics and the QPs evaluate in
-place on the controller's preallocated buffers (callers serialise steps, e.g. `app.closed_loop`'s step lock).
+place on the controller's preallocated buffers (callers serialise steps, e.g. `app.runtime.closed_loop`'s step lock).
 """
 
 from __future__ import annotations

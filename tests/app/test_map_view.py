@@ -4,7 +4,7 @@ known pose until the map starts over."""
 import numpy as np
 import viser
 
-from app.snapshot import Snapshot
+from app.runtime.snapshot import Snapshot
 from app.ui.map_view import MapView
 from core.params import MappingParams
 from core.types import MappedObject, ObjectMapSnapshot, RobotState

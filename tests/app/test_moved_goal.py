@@ -8,7 +8,7 @@ import pytest
 import viser
 
 from app.runtime import Runtime, RuntimeConfig
-from app.snapshot import RunState
+from app.runtime.snapshot import RunState
 from app.ui.progress_panel import ProgressPanel
 from core.sim.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence, Tolerance

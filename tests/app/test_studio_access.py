@@ -18,7 +18,7 @@ from websockets.exceptions import InvalidStatus
 from websockets.sync.client import ClientConnection, connect
 
 from app.runtime import Runtime, RuntimeConfig
-from app.snapshot import RunState
+from app.runtime.snapshot import RunState
 from app.ui.studio import Studio
 from core.sim.scene import Scene
 from tests.app.conftest import free_port

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from app.runtime import Runtime, RuntimeConfig
-from app.snapshot import RunState
+from app.runtime.snapshot import RunState
 from app.ui.studio import Studio
 from core.sim.scene import Box, Scene
 from tasks import TaskSequence

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from app.recording import Recorder
-from app.replay import ReplaySource
+from app.recording.replay import ReplaySource
 from app.runtime import Runtime, RuntimeConfig
 from app.ui.studio import Studio
 from core.sim.scene import Box, Scene

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from app.runtime import Runtime, RuntimeConfig
-from app.snapshot import RunState
+from app.runtime.snapshot import RunState
 from app.ui import glyphs
 from core.sim.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence

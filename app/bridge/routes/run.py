@@ -12,8 +12,8 @@ from app.bridge.auth import require_token
 from app.bridge.dependencies import Attached, Link
 from app.bridge.protocol import ConfigIn, RunStatus, StepIn
 from app.bridge.routes import AUTH_ERRORS, CONFLICT
-from app.closed_loop import FaultError
-from app.snapshot import RunState
+from app.runtime.closed_loop import FaultError
+from app.runtime.snapshot import RunState
 
 if TYPE_CHECKING:
     from app.runtime import Runtime

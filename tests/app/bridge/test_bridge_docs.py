@@ -44,8 +44,8 @@ def test_ready_pose_and_speed_limits_match_the_code() -> None:
 
 def test_the_command_rate_paragraph_states_the_codes_period_and_priorities() -> None:
     from app.bridge.sim_driver import build_parser
-    from app.map_process import NICENESS
     from app.runtime import RuntimeConfig
+    from app.runtime.map_process import NICENESS
     from core.params import HTMPCParams
 
     paragraph = FLAT.split("**The command rate a driver sees.**", 1)[1].split("received.", 1)[0]

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from app.bridge.server import BridgeServer
-from app.snapshot import RunState
+from app.runtime.snapshot import RunState
 from tests.app.bridge.conftest import wait_until
 
 DEADLINE_S = 0.2

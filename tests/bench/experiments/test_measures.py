@@ -57,7 +57,7 @@ def test_collisions_split_into_base_and_arm():
 
 
 def test_approach_speed_is_how_fast_the_clearance_shrinks_not_the_speed():
-    from app.run_log import RunLog
+    from app.runtime.run_log import RunLog
     from bench.experiments.measures import approach_speeds
     from core.types import RobotState
 

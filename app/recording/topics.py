@@ -30,8 +30,8 @@ from typing import Any
 
 import numpy as np
 
-from app.problems import ProblemCount, ProblemKind
-from app.snapshot import EDFSlice, RunState, Snapshot
+from app.runtime.problems import ProblemCount, ProblemKind
+from app.runtime.snapshot import EDFSlice, RunState, Snapshot
 from core.sim.scene import Box
 from core.types import (
     DepthFrame,

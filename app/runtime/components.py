@@ -19,7 +19,7 @@ def make_map(kind: MapKind, robot: RobotModel, world: SimWorld | None, params: M
     if kind == "ground_truth":
         if world is None:
             raise ValueError("the ground-truth map needs the embedded simulation")
-        from app.ground_truth_map import GroundTruthMap
+        from app.runtime.ground_truth_map import GroundTruthMap
 
         return GroundTruthMap(world, params)
     if kind == "object":

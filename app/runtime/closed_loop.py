@@ -2,7 +2,7 @@
 parts it owns (map, controller, sequencer, plan, run state, fault, run log).
 
 Lockstep calls `tick()` directly (simulated time, one thread, deterministic). Live mode
-(`app/live_loops.py`) schedules the same stages on supervised threads: `observe` + `command` (I/O, 100 Hz),
+(`app/runtime/live_loops.py`) schedules the same stages on supervised threads: `observe` + `command` (I/O, 100 Hz),
 `integrate_frames` (mapping, as frames arrive), `control` + `measure` (10 Hz).
 
 Fail safe: any exception in a stage, or a non-finite robot state, calls `fault(reason)`: the robot brakes
@@ -44,12 +44,12 @@ from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 
-from app.components import make_controller, make_map
 from app.map_kind import MapKind
-from app.map_process import MapProcess, MapProcessError
-from app.problems import ProblemKind, ProblemLog
-from app.run_log import RunLog
-from app.snapshot import RunState
+from app.runtime.components import make_controller, make_map
+from app.runtime.map_process import MapProcess, MapProcessError
+from app.runtime.problems import ProblemKind, ProblemLog
+from app.runtime.run_log import RunLog
+from app.runtime.snapshot import RunState
 from core.htmpc.safety import brake_along, braking_plan
 from core.mapping.frame_exposure import at_exposure
 from core.mapping.world_map import WorldMap
@@ -63,7 +63,7 @@ from tasks.schema import TaskSequence
 from tasks.sequencer import Sequencer, SubtaskProgress
 
 if TYPE_CHECKING:
-    from app.runtime import RuntimeConfig
+    from app.runtime.config import RuntimeConfig
     from core.htmpc import HTMPC
 
 log = logging.getLogger(__name__)
@@ -247,7 +247,7 @@ class ClosedLoop:
                     self.controller = controller
 
     def isolate_map(self, process: MapProcess | None = None, niceness: int | None = None) -> None:
-        """Live: run an object or voxel map in its own process (app/map_process.py), so that its CPU work
+        """Live: run an object or voxel map in its own process (app/runtime/map_process.py), so that its CPU work
         never holds the GIL the I/O and control loops need; in `process` (still running) if given, else in a
         new one at `niceness` (default: `map_process.NICENESS` below the calling thread's priority)."""
         with self.map_lock:

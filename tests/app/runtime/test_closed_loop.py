@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from app import cli
-from app.closed_loop import FaultError
-from app.snapshot import RunState
+from app.runtime.closed_loop import FaultError
+from app.runtime.snapshot import RunState
 from tasks.sequence_file import EXAMPLES_DIR
 from tests.app.faults import RaiseOnCall, assert_brakes_within_limits, faulty_runtime
 
@@ -89,10 +89,10 @@ def test_the_emergency_stop_stays_immediate_and_keeps_the_fault():
 
 
 def test_headless_run_with_a_fault_exits_non_zero_with_one_line(tmp_path, monkeypatch, capsys):
-    import app.closed_loop
+    import app.runtime.closed_loop
 
-    real = app.closed_loop.make_map
-    monkeypatch.setattr(app.closed_loop, "make_map", lambda *a: RaiseOnCall(real(*a), "local_edf",
+    real = app.runtime.closed_loop.make_map
+    monkeypatch.setattr(app.runtime.closed_loop, "make_map", lambda *a: RaiseOnCall(real(*a), "local_edf",
                                                                           ValueError("edf broke"), k=30))
     code = cli.main(["run", "--headless", "--map", "ground_truth", "--sequence",
                      str(EXAMPLES_DIR / "navigation_through_boxes.yaml"), "--max-duration", "20",

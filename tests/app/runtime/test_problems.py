@@ -6,10 +6,10 @@ import time
 import numpy as np
 import pytest
 
-from app.problems import ProblemKind, ProblemLog, summary_line
-from app.report import write_report
+from app.recording.report import write_report
 from app.runtime import Runtime, RuntimeConfig
-from app.snapshot import RunState
+from app.runtime.problems import ProblemKind, ProblemLog, summary_line
+from app.runtime.snapshot import RunState
 from core.sim.scene import Scene
 from core.types import Plan, PlanStatus
 from tasks import BasePose, BaseSubtask, TaskSequence

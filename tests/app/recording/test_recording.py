@@ -18,8 +18,8 @@ import pytest
 from mcap.reader import make_reader
 
 from app.recording import Recorder, read_recording
-from app.recording_topics import SCHEMAS
-from app.replay import ReplaySource
+from app.recording.replay import ReplaySource
+from app.recording.topics import SCHEMAS
 from app.runtime import Runtime, RuntimeConfig
 from core.sim.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
@@ -152,8 +152,8 @@ def test_problems_and_moved_goals_survive_the_recording(recorded) -> None:
     comes back from a recording as it was published."""
     from dataclasses import replace
 
-    from app.problems import ProblemKind, ProblemLog
-    from app.recording_topics import snapshot_from_messages, snapshot_messages
+    from app.recording.topics import snapshot_from_messages, snapshot_messages
+    from app.runtime.problems import ProblemKind, ProblemLog
     from tasks.sequencer import GoalShift
 
     snap = read_recording(recorded[0])[-1]

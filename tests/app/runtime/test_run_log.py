@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-from app.run_log import RunLog
+from app.runtime.run_log import RunLog
 from core.types import Plan, PlanStatus, RobotState
 
 

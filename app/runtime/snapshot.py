@@ -10,7 +10,7 @@ from enum import StrEnum
 
 import numpy as np
 
-from app.problems import ProblemCount
+from app.runtime.problems import ProblemCount
 from core.sim.scene import Box
 from core.types import DepthFrame, ObjectMapSnapshot, Plan, RobotState
 from tasks.sequencer import SubtaskProgress
@@ -76,6 +76,6 @@ class Snapshot:
     depth_frames: tuple[DepthFrame, ...] = ()
     """The newest depth frame of each camera (recordings keep them on request)."""
     problems: tuple[ProblemCount, ...] = ()
-    """Problems of the run so far, counted by kind (`app.problems`)."""
+    """Problems of the run so far, counted by kind (`app.runtime.problems`)."""
     fault: str | None = None
     """Why the run is in `RunState.FAULT` (kept until Reset), None without a fault."""

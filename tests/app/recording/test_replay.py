@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from app.recording import Recorder
-from app.replay import ReplaySource, wait_until_played
+from app.recording.replay import ReplaySource, wait_until_played
 from app.runtime import Runtime, RuntimeConfig
 from app.ui.studio import Studio
 from core.sim.scene import Box, Scene

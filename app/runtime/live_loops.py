@@ -4,13 +4,13 @@
   first makes the cameras' renderers, and the other loops start after that (`CAMERA_SETUP_WAIT_S`);
 - io: observe + command at the command rate (100 Hz), deadline-paced so the rate holds on average;
 - mapping: integrate depth frames as they arrive (only the newest of each camera when behind), the object
-  and voxel maps in a process of their own (`app/map_process.py`: mapping held the GIL these loops need);
+  and voxel maps in a process of their own (`app/runtime/map_process.py`: mapping held the GIL these loops need);
 - control: one control step (and a run-log row) per control period of robot time, woken by the io loop;
 - publish: a snapshot to the subscribers at `publish_hz`;
 - watchdog: every loop must keep beating; a dead or stalled loop is a fault.
 
 The loops, and the other threads of the process (the bridge's event loop), run at the raised priority of
-`RuntimeConfig.live_niceness` where the system allows it (`app/priority.py`); the mapping process
+`RuntimeConfig.live_niceness` where the system allows it (`app/thread_priority.py`); the mapping process
 `map_process.NICENESS` below them.
 
 Each loop is a `SupervisedLoop`: an exception of any kind in an iteration faults the run (the robot brakes
@@ -27,11 +27,11 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from app.closed_loop import ClosedLoop
-from app.map_process import NICENESS, MapProcess
-from app.priority import boost_threads, set_thread_niceness, thread_niceness
-from app.problems import ProblemKind
-from app.snapshot import RunState
+from app.runtime.closed_loop import ClosedLoop
+from app.runtime.map_process import NICENESS, MapProcess
+from app.runtime.problems import ProblemKind
+from app.runtime.snapshot import RunState
+from app.thread_priority import boost_threads, set_thread_niceness, thread_niceness
 from core.sim.sim_robot import SimRobot
 
 log = logging.getLogger(__name__)
@@ -77,7 +77,7 @@ class SupervisedLoop:
                  niceness: int | None = None) -> None:
         self.name, self.tick, self.on_fault = name, tick, on_fault
         self.niceness = niceness
-        """The thread's niceness (`app/priority.py`; None: the creator's)."""
+        """The thread's niceness (`app/thread_priority.py`; None: the creator's)."""
         self.period_s, self.on_exit = period_s, on_exit
         self.stall_after_s = STALL_AFTER_S.get(name, 5.0)
         self.stats = LoopStats()

@@ -16,8 +16,8 @@ from typing import NoReturn
 
 import numpy as np
 
-from app.recording import read_recording
-from app.snapshot import Snapshot
+from app.recording.recorder import read_recording
+from app.runtime.snapshot import Snapshot
 from core.params import MappingParams
 from core.robot.model import RobotModel
 from core.types import RobotState

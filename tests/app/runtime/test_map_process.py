@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import core.sim  # noqa: F401  (GL backend first)
-from app.map_process import MapProcess, MapProcessError
+from app.runtime.map_process import MapProcess, MapProcessError
 from core.mapping import ObjectMapper
 from core.params import MappingParams
 from core.robot.model import RobotModel

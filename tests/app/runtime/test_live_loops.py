@@ -9,8 +9,8 @@ import threading
 import numpy as np
 import pytest
 
-from app.closed_loop import FaultError
-from app.snapshot import RunState, Snapshot
+from app.runtime.closed_loop import FaultError
+from app.runtime.snapshot import RunState, Snapshot
 from tests.app.bridge.conftest import wait_until
 from tests.app.faults import PATIENT, RaiseOnCall, assert_brakes_within_limits, faulty_runtime
 

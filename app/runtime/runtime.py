@@ -3,11 +3,11 @@ used by the UI, the bridge's operator API and the CLI. It runs in two modes:
 
 - **lockstep** (`run_lockstep`): simulated time, one thread, deterministic, as fast as the machine
   allows; optional modelled perception and actuation delays. For tests, reports and benchmarks.
-- **live** (`start_live`): supervised wall-clock threads (`app/live_loops.py`): physics (simulation only),
+- **live** (`start_live`): supervised wall-clock threads (`app/runtime/live_loops.py`): physics (simulation only),
   I/O at 100 Hz (observe, command), mapping as frames arrive, control at 10 Hz, publishing at 20 Hz.
 
-Both run the stages of one `ClosedLoop` (`app/closed_loop.py`, which also writes down the lock order);
-snapshots are assembled by `app/snapshot_builder.py`. A fault anywhere brakes the robot within its limits
+Both run the stages of one `ClosedLoop` (`app/runtime/closed_loop.py`, which also writes down the lock order);
+snapshots are assembled by `app/runtime/snapshot_builder.py`. A fault anywhere brakes the robot within its limits
 and holds the run in `RunState.FAULT` until `reset`, which builds a new closed loop and new live threads.
 
 Rates (paper): physics 500 Hz, depth 10 Hz, HTMPC 10 Hz, velocity commands 100 Hz interpolated from
@@ -19,27 +19,26 @@ from __future__ import annotations
 
 import logging
 import threading
-import typing
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
-from pathlib import Path
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported)
-from app.closed_loop import MOVING_STATES, ClosedLoop, FaultError
-from app.live_loops import LiveLoops
-from app.map_kind import MAP_KINDS, MapKind
-from app.map_process import MapProcess
-from app.native_memory import limit_arenas, release_free_memory
-from app.problems import ProblemLog
-from app.run_log import RunLog
-from app.snapshot import RunState, Snapshot
-from app.snapshot_builder import build_snapshot, status_line
+from app.map_kind import MapKind
+from app.runtime.closed_loop import MOVING_STATES, ClosedLoop
+from app.runtime.config import RuntimeConfig
+from app.runtime.live_loops import LiveLoops
+from app.runtime.map_process import MapProcess
+from app.runtime.native_memory import limit_arenas, release_free_memory
+from app.runtime.problems import ProblemLog
+from app.runtime.run_log import RunLog
+from app.runtime.snapshot import RunState, Snapshot
+from app.runtime.snapshot_builder import build_snapshot, status_line
 from core.mapping.world_map import WorldMap
-from core.params import ConstraintKind, HTMPCParams, MappingParams, RobotParams, SequencerParams, SimParams
+from core.params import ConstraintKind
 from core.robot.model import RobotModel
 from core.sim.scene import Box, Scene, load_scene, random_scene
 from core.sim.sim_robot import SimRobot
@@ -52,58 +51,12 @@ from tasks.sequencer import Sequencer
 if TYPE_CHECKING:
     from core.htmpc import HTMPC
 
-__all__ = ["CONSTRAINT_KINDS", "DEFAULT_SCENE", "DEFAULT_SEQUENCE", "MAP_KINDS", "ROOT", "FaultError", "Runtime",
-           "RuntimeConfig"]
+__all__ = ["FAULT_BRAKE_LIMIT_S", "Runtime"]
 
 log = logging.getLogger(__name__)
 
-ROOT = Path(__file__).parents[1]
-DEFAULT_SCENE = ROOT / "core" / "sim" / "scenes" / "default.yaml"
-DEFAULT_SEQUENCE = ROOT / "tasks" / "examples" / "two_pickups.yaml"
-CONSTRAINT_KINDS: tuple[ConstraintKind, ...] = typing.get_args(ConstraintKind)
 FAULT_BRAKE_LIMIT_S = 5.0
 """Lockstep: sim time a faulted run may take to come to rest before the run ends anyway."""
-
-
-@dataclass(frozen=True)
-class RuntimeConfig:
-    """How to run: scene, sequence, map and constraint kind, pace, modelled delays, tunables."""
-
-    scene: Path | None = DEFAULT_SCENE
-    sequence: Path | None = DEFAULT_SEQUENCE
-    map_kind: MapKind = "object"
-    speed: float = 1.0
-    """Live mode: sim seconds per wall second."""
-    perception_delay_s: float = 0.0
-    actuation_delay_s: float = 0.0
-    publish_hz: float = 20.0
-    map_process: bool = True
-    """Live mode: run the object and voxel maps in a process of their own (keeps the I/O loops on time)."""
-    live_niceness: int | None = -10
-    """Live mode: the niceness its threads ask for (lower runs first, as robot control stacks do; needs root
-    or CAP_SYS_NICE, else they stay at normal priority: `app/priority.py`); None leaves priorities alone."""
-    seed: int = 0
-    htmpc: HTMPCParams = field(default_factory=HTMPCParams)
-    mapping: MappingParams = field(default_factory=MappingParams)
-    sequencer: SequencerParams = field(default_factory=SequencerParams)
-    sim: SimParams = field(default_factory=SimParams)
-    robot: RobotParams = field(default_factory=RobotParams)
-
-    def __post_init__(self) -> None:
-        if self.map_kind not in MAP_KINDS:
-            raise ValueError(f"map_kind must be one of {MAP_KINDS}, got {self.map_kind!r}")
-
-    @property
-    def constraint(self) -> ConstraintKind:
-        """The controller's constraint kind (`HTMPCParams.constraint`)."""
-        return self.htmpc.constraint
-
-    def configured(self, map_kind: MapKind | None = None, constraint: ConstraintKind | None = None) -> RuntimeConfig:
-        """This configuration with another map kind and/or constraint kind (None: unchanged), validated."""
-        htmpc = self.htmpc if constraint is None else replace(self.htmpc, constraint=constraint)
-        return replace(self, map_kind=map_kind or self.map_kind, htmpc=htmpc)
-        if not (0.05 <= self.speed <= 20.0):
-            raise ValueError(f"speed must be within 0.05–20, got {self.speed}")
 
 
 class Runtime:
@@ -416,7 +369,7 @@ class Runtime:
         the object or voxel map in its own process (`map_process`, when one is handed on by `reset`)."""
         if self._live is not None:
             return
-        limit_arenas()  # the live threads are rebuilt on every Reset (app/native_memory.py)
+        limit_arenas()  # the live threads are rebuilt on every Reset (app/runtime/native_memory.py)
         self._live = LiveLoops(self._loop, self.publish, self.config.publish_hz)
         self._live.start(map_process)
 

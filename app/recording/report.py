@@ -13,8 +13,8 @@ import matplotlib.patches as mpatches  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from app.problems import ProblemKind, ProblemLog  # noqa: E402
-from app.run_log import RunLog  # noqa: E402
+from app.runtime.problems import ProblemKind, ProblemLog  # noqa: E402
+from app.runtime.run_log import RunLog  # noqa: E402
 from core.atomic_file import atomic_output, write_text_atomic  # noqa: E402
 from core.sim.scene import Box  # noqa: E402
 

@@ -31,7 +31,7 @@ from mcap.records import Chunk, Footer, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
 
-from app.recording_topics import (
+from app.recording.topics import (
     FIXED_TOPICS,
     FORMAT,
     SCHEMAS,
@@ -42,7 +42,7 @@ from app.recording_topics import (
     snapshot_from_messages,
     snapshot_messages,
 )
-from app.snapshot import Snapshot
+from app.runtime.snapshot import Snapshot
 from core.atomic_file import fsync_dir
 from core.types import DepthFrame
 

@@ -18,7 +18,7 @@ raise `MapProcessError`, which the closed loop turns into a fault. Calls on the 
 The worker runs at a lower priority than the loops that must keep time (`NICENESS` above theirs): on a
 machine short of CPU the map updates less often (only the newest frame of each camera is integrated)
 instead of those loops, and the robot's driver, running late. When the loops run at raised priority
-(`app/priority.py`), the worker runs at normal priority, beside ordinary programs.
+(`app/thread_priority.py`), the worker runs at normal priority, beside ordinary programs.
 """
 
 from __future__ import annotations

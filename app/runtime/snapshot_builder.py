@@ -13,8 +13,8 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from app.closed_loop import ClosedLoop
-from app.snapshot import EDFSlice, RunState, Snapshot
+from app.runtime.closed_loop import ClosedLoop
+from app.runtime.snapshot import EDFSlice, RunState, Snapshot
 from core.types import DepthFrame, LocalEDF, ObjectMapSnapshot, Plan
 
 log = logging.getLogger(__name__)
