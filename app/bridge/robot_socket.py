@@ -78,7 +78,7 @@ class Outbox:
                 await websocket.send_text(text)
 
 
-def _accept_text(link: RobotLink, text: str) -> None:
+def _accept_text(link: RobotLink, text: str, first: bool) -> None:
     if len(text) > MAX_TEXT_CHARS:
         raise MessageRejectedError("invalid_message",
                                    f"text message of {len(text)} characters; at most {MAX_TEXT_CHARS}")
@@ -95,16 +95,20 @@ def _accept_text(link: RobotLink, text: str) -> None:
     elif isinstance(msg, Ack):
         link.accept_ack(msg)
     elif isinstance(msg, Hello):
+        if not first:  # a driver is named once: a hello mid-stream would rename it in the log and /api/health
+            raise MessageRejectedError("invalid_message", f"hello must be the first message of a connection; the "
+                                                          f"driver stays {link.driver!r}")
         link.name_driver(msg.driver)
 
 
-def handle(link: RobotLink, message: Mapping[str, Any]) -> str | None:
-    """Pass one received message on to the link; returns the error message text if it was rejected."""
+def handle(link: RobotLink, message: Mapping[str, Any], first: bool = False) -> str | None:
+    """Pass one received message on to the link (`first`: the connection's first message, where a `hello`
+    belongs); returns the error message text if it was rejected."""
     try:
         if message.get("bytes") is not None:
             link.accept_frame(decode_depth_frame(message["bytes"]))
         elif message.get("text") is not None:
-            _accept_text(link, message["text"])
+            _accept_text(link, message["text"], first)
         return None
     except FrameFormatError as err:
         code: RejectionCode = "invalid_frame"
@@ -128,12 +132,13 @@ async def _deny(websocket: WebSocket, status_code: int, detail: str) -> None:
 async def _serve(websocket: WebSocket, link: RobotLink, outbox: Outbox) -> None:
     outbox.post(Welcome(stale_after_s=link.stale_after_s).model_dump_json())
     pump = asyncio.create_task(outbox.pump(websocket))
+    first = True
     try:
         while True:
             message = await websocket.receive()
             if message["type"] == "websocket.disconnect":
                 break
-            error = handle(link, message)
+            error, first = handle(link, message, first), False
             if error is not None:
                 outbox.post(error)
     finally:

@@ -60,7 +60,7 @@ from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
 from core.types import NQ, DepthFrame, LocalEDF, Observation, Plan, PlanStatus, RobotBackend, RobotState
 from tasks.schema import TaskSequence
-from tasks.sequencer import Sequencer, SubtaskProgress
+from tasks.sequencer import Outcome, Sequencer, SubtaskProgress
 
 if TYPE_CHECKING:
     from app.runtime.config import RuntimeConfig
@@ -141,6 +141,8 @@ class ClosedLoop:
         self.min_distance_m = math.nan
         self.latest_frames: dict[str, DepthFrame] = {}
         self.step_budget_s = 0.0
+        self._halted_t: float | None = None
+        """Robot time a running sequence was stopped or e-stopped (Start resumes with the clock moved on)."""
         self.max_plan_age_s = math.inf
         """Running on a plan from a control step older than this (robot s) is a fault (live mode sets it;
         lockstep is never late)."""
@@ -175,20 +177,17 @@ class ClosedLoop:
     # --- run control ---------------------------------------------------------------------------------
 
     def start(self, sequence: TaskSequence) -> None:
-        """Run `sequence` from its first subtask, or resume when paused; FaultError while faulted."""
+        """Resume the active subtask after a pause (also a stale-state one), a stop or an emergency stop;
+        else (nothing begun, or the sequence finished or failed) run `sequence` from its first subtask.
+        Starting over is Reset's job. FaultError while faulted."""
         with self.step_lock:
             with self.lock:
                 if self.fault_reason is not None:
                     raise FaultError(f"fault: {self.fault_reason}; Reset before starting again")
                 if self.run_state == RunState.RUNNING:
                     return
-                if self.run_state == RunState.PAUSED:
-                    self.sequencer.resume(self.state.t)
-                    if self.world is None:  # a real robot held still while paused: its old plan is void
-                        self.plan = None
-                        self._pending_plans.clear()
-                    self._last_control_t = self.state.t  # the pause is no lateness of the control loop
-                    self.run_state = RunState.RUNNING
+                if self._resumable():
+                    self._resume()
                     return
             sequencer = self._sequencer(sequence)
             self.controller.reset()
@@ -196,8 +195,34 @@ class ClosedLoop:
                 self.sequencer, self.view = sequencer, SequenceView.of(sequencer)
                 self.plan = None
                 self._pending_plans.clear()
+                self._halted_t = None
                 self.run_state = RunState.RUNNING
         log.info("sequence %r started (%d subtasks)", sequence.name, len(sequence.subtasks))
+
+    def _resumable(self) -> bool:
+        """Whether Start resumes: the run was interrupted (paused, stopped, e-stopped) with a subtask begun
+        and the sequence neither finished nor failed (call under `lock`)."""
+        if self.run_state == RunState.PAUSED:
+            return True
+        begun = any(p.outcome != Outcome.PENDING for p in self.sequencer.progress)
+        return (self.run_state in (RunState.IDLE, RunState.ESTOP) and begun and not self.sequencer.failed
+                and not self.sequencer.finished)
+
+    def _resume(self) -> None:
+        """Run the active subtask on (under `step_lock` and `lock`); the interruption counts toward neither its
+        timeout nor its dwell."""
+        interrupted = self.run_state
+        if self._halted_t is not None:  # stopped or e-stopped: the subtask clock stood still since then
+            self.sequencer.pause(self._halted_t)
+        self.sequencer.resume(self.state.t)
+        if self.world is None or interrupted != RunState.PAUSED:  # a robot held still: its old plan is void
+            self.plan = None
+            self._pending_plans.clear()
+        self._last_control_t = self.state.t  # the interruption is no lateness of the control loop
+        self._halted_t = None
+        self.run_state = RunState.RUNNING
+        if interrupted != RunState.PAUSED:
+            log.info("sequence resumed at subtask %d after %s", self.sequencer.index + 1, interrupted.value)
 
     def pause(self) -> None:
         with self.step_lock, self.lock:
@@ -209,6 +234,8 @@ class ClosedLoop:
         """Enter `run_state`, drop the plan and any delayed ones, command zero velocity now."""
         with self.command_lock:
             with self.lock:
+                if run_state != RunState.FAULT and self.run_state == RunState.RUNNING:
+                    self._halted_t = self.state.t  # the subtask clock stands still until Start resumes
                 self.run_state = run_state
                 self.plan = None
                 self._pending_plans.clear()

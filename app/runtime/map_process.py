@@ -27,6 +27,7 @@ import contextlib
 import logging
 import multiprocessing
 import os
+import signal
 import threading
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
@@ -57,6 +58,8 @@ class MapProcessError(RuntimeError):
 def _serve(conn: Connection, niceness: int) -> None:
     """The worker (at `niceness`, or the nearest it may have): import the maps, say 'ready', then answer
     requests until 'close' (handing the map back) or the pipe closes."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl+C is the parent's to handle: it asks for the map back
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # blocked since the spawn (`MapProcess`)
     with contextlib.suppress(PermissionError):
         os.setpriority(os.PRIO_PROCESS, 0, max(niceness, -20))
     import core.mapping  # noqa: F401  (the seconds of imports happen before 'ready')
@@ -121,7 +124,13 @@ class MapProcess:
         if niceness is None:
             niceness = os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) + NICENESS
         self._process = ctx.Process(target=_serve, args=(child, min(niceness, 19)), name="mapping", daemon=True)
-        self._process.start()
+        # Ctrl+C in a terminal signals the whole process group: the worker is born with SIGINT blocked (a thread's
+        # mask is inherited), so even its start-up is not interrupted, and then ignores it.
+        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            self._process.start()
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
         child.close()
 
     @property
@@ -140,10 +149,19 @@ class MapProcess:
                 raise MapProcessError(f"the mapping process did not answer {op} within {self.timeout_s:.0f} s")
             kind, value = self._conn.recv()
         except (EOFError, OSError) as err:
-            raise MapProcessError(f"the mapping process is gone ({type(err).__name__}: {err})") from err
+            raise self._gone(err) from err
         if kind == "error":
             raise MapProcessError(f"{op} failed in the mapping process: {value}")
         return value
+
+    def _gone(self, err: BaseException) -> MapProcessError:
+        """The worker's end of the pipe closed: say how it ended (exit status or signal), as evidence."""
+        self._process.join(timeout=0.5)
+        code = self._process.exitcode
+        how = ("still running" if code is None else f"killed by {signal.Signals(-code).name}" if code < 0
+               else f"exit status {code}")
+        return MapProcessError(f"the mapping process is gone ({type(err).__name__}: {err}; pid {self._process.pid} "
+                               f"{how})")
 
     def _here(self) -> WorldMap | None:
         """The map if it still works here; hands it to the worker as soon as the worker is ready (under
@@ -154,13 +172,14 @@ class MapProcess:
             if not self._ready and self._conn.poll(0):
                 self._ready = self._conn.recv()[0] == "ready"
         except (EOFError, OSError) as err:
-            raise MapProcessError(f"the mapping process is gone ({type(err).__name__}: {err})") from err
+            raise self._gone(err) from err
         if not self._ready:
             return self._local
         local = self._local
         self._call("adopt", local)
         self._latest = _Latest(local.snapshot(), local.occupied_points(), dict(local.timings_ms))
         self._local = None
+        log.info("the map now runs in the mapping process (pid %s)", self._process.pid)
         return None
 
     @property

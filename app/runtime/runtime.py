@@ -224,7 +224,8 @@ class Runtime:
     # --- run control (UI, bridge, CLI) -------------------------------------------------------------
 
     def start(self) -> None:
-        """Run the authored sequence from its first subtask (or resume when paused).
+        """Resume the active subtask after a pause, a stale-state pause, a stop or an emergency stop; else run
+        the authored sequence from its first subtask (starting over is `reset`'s job).
 
         Raises `FaultError` (with the reason) while the run is faulted: `reset` first."""
         self._loop.start(self.sequence)
@@ -243,11 +244,12 @@ class Runtime:
             loop.step_budget_s += seconds or 1.0 / loop.controller.params.control_rate_hz
 
     def stop(self) -> None:
-        """Stop the sequence; the robot comes to rest (after a fault it goes on braking within its limits)."""
+        """Stop the sequence; the robot comes to rest (after a fault it goes on braking within its limits);
+        `start` resumes the active subtask."""
         self._loop.stop()
 
     def emergency_stop(self) -> None:
-        """Zero velocity at once; nothing moves until `start` or `reset`."""
+        """Zero velocity at once; nothing moves until `start` (resumes the active subtask) or `reset`."""
         self._loop.halt(RunState.ESTOP)
         self.notify("emergency stop")
 

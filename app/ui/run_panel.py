@@ -21,6 +21,12 @@ def _choice(value: str, options: tuple[T, ...]) -> T:
             return option
     raise ValueError(f"{value!r} is not one of {', '.join(map(str, options))}")
 
+
+ESTOP_HINT = "Zero velocity now; Start resumes the active subtask, Reset starts over"
+CONTROL_HINT = ("Start resumes the subtask that was active after Pause, Stop, an emergency stop or a stale-state "
+                "pause (a finished or failed sequence runs again); Reset starts over: scene, map and progress")
+
+
 class RunPanel:
     """The 'Run' folder; the emergency stop is a red button and the Escape hotkey."""
 
@@ -28,8 +34,9 @@ class RunPanel:
         self.server, self.runtime = server, runtime
         with server.gui.add_folder("Run"):
             self.estop = server.gui.add_button("EMERGENCY STOP (Esc)", color="red", icon=viser.Icon.HAND_STOP,
-                                               hint="Zero velocity now; Start or Reset to go on")
-            self.buttons = server.gui.add_button_group("Control", ("Start", "Pause", "Step", "Stop", "Reset"))
+                                               hint=ESTOP_HINT)
+            self.buttons = server.gui.add_button_group("Control", ("Start", "Pause", "Step", "Stop", "Reset"),
+                                                       hint=CONTROL_HINT)
             self.speed = server.gui.add_slider("Speed (×)", min=0.1, max=4.0, step=0.1,
                                                initial_value=runtime.config.speed)
             self.map_kind = server.gui.add_dropdown("Map", MAP_KINDS, initial_value=runtime.config.map_kind)
