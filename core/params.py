@@ -374,8 +374,8 @@ class MappingParams:
     unknown_cell_m: float = 0.1
     """Floor cells of the evidence (m)."""
     unknown_min_rays: int = 3
-    """A cell turns unknown when, in one frame, at least this many of its rays returned nothing and they
-    outnumber its floor returns (2 % random dropouts never do); floor seen there again clears it."""
+    """A cell turns unknown when, in one frame, at least this many of the rays aimed at it returned nothing and
+    they are most of those rays (2 % random dropouts never are); floor seen there again clears it."""
     unknown_height_m: float = 1.0
     """Height of an unknown column (m): above the base's rack (0.92 m), so no part of the base passes over."""
 

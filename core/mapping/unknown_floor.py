@@ -7,7 +7,8 @@ indirectly: a ray that should meet the floor within range and returns nothing me
 
 `UnknownFloor` keeps that evidence on floor cells (`unknown_cell_m`): in each frame, a cell whose expected
 floor rays mostly returned nothing (at least `unknown_min_rays`) turns unknown; a cell where the floor was
-seen turns free again. Random dropouts (2 %) never outnumber a cell's floor returns; a dark box leaves the
+seen turns free again. Random dropouts (2 %) are never most of a cell's rays (rays that meet a surface that
+answers, the top of an ordinary box, count as answered); a dark box leaves the
 floor cells behind its face unknown, from the face itself on, while the floor before it stays seen.
 
 `unknown_columns` turns the cells into a signed distance to columns from the floor up to `unknown_height_m`
@@ -51,23 +52,26 @@ class UnknownFloor:
         down = world_rays[:, 2] < 0.0
         expected = np.where(down, -t[2] / np.where(down, world_rays[:, 2], -1.0), np.inf)  # planar depth of the floor
         limit = min(p.unknown_floor_range_m, frame.range_m)
-        miss = down & (expected >= p.unknown_floor_min_depth_m) & (expected <= limit) & (z <= 0.0)
+        aimed = down & (expected >= p.unknown_floor_min_depth_m) & (expected <= limit)
+        floor_xy = t[:2] + world_rays[aimed, :2] * expected[aimed, None]
         hit_points = t + world_rays[z > 0.0] * z[z > 0.0, None]
         floor_hits = hit_points[hit_points[:, 2] < p.floor_height_m, :2]
-        missed = t[:2] + world_rays[miss, :2] * expected[miss, None]
-        self._update(self._key(missed), self._key(floor_hits))
+        self._update(self._key(floor_xy), z[aimed] <= 0.0, self._key(floor_hits))
 
     def _key(self, xy: np.ndarray) -> np.ndarray:
         ij = np.rint(xy / self.params.unknown_cell_m).astype(np.int64) + KEY_OFFSET
         return (ij[:, 0] << KEY_BITS) + ij[:, 1]
 
-    def _update(self, missed: np.ndarray, hits: np.ndarray) -> None:
-        keys = np.unique(np.concatenate([missed, hits]))
-        n_miss = np.zeros(len(keys), dtype=int)
-        n_hit = np.zeros(len(keys), dtype=int)
-        np.add.at(n_miss, np.searchsorted(keys, missed), 1)
+    def _update(self, aimed: np.ndarray, missed: np.ndarray, hits: np.ndarray) -> None:
+        """`aimed`: the cells of the rays aimed at the floor, `missed` which of them returned nothing; `hits`:
+        the cells of floor points seen."""
+        keys = np.unique(np.concatenate([aimed, hits]))
+        n_aimed, n_miss, n_hit = (np.zeros(len(keys), dtype=int) for _ in range(3))
+        np.add.at(n_aimed, np.searchsorted(keys, aimed), 1)
+        np.add.at(n_miss, np.searchsorted(keys, aimed[missed]), 1)
         np.add.at(n_hit, np.searchsorted(keys, hits), 1)
-        unknown = keys[(n_miss >= self.params.unknown_min_rays) & (n_miss > n_hit)]
+        # most rays aimed there got nothing back (those that met a surface that answers did get something)
+        unknown = keys[(n_miss >= self.params.unknown_min_rays) & (2 * n_miss > n_aimed)]
         seen = keys[n_hit >= np.maximum(n_miss, 1)]
         self.keys = np.union1d(np.setdiff1d(self.keys, seen, assume_unique=True), unknown)
 
