@@ -44,18 +44,17 @@ class UnknownFloor:
         """Mark the cells whose expected floor rays returned nothing; clear those where the floor was seen."""
         p = self.params
         rays, v, u = pixel_rays(frame.K, frame.depth.shape, PIXEL_STRIDE)
-        R, t = frame.T_world_camera[:3, :3], frame.T_world_camera[:3, 3]
+        R, t = frame.T_world_camera[:3, :3].astype(np.float32), frame.T_world_camera[:3, 3]
         if t[2] <= 0.0:
             return
-        world_rays = rays.astype(float) @ R.T  # planar depth 1 along each ray
-        z = frame.depth[v, u].astype(float)
-        down = world_rays[:, 2] < 0.0
-        expected = np.where(down, -t[2] / np.where(down, world_rays[:, 2], -1.0), np.inf)  # planar depth of the floor
-        limit = min(p.unknown_floor_range_m, frame.range_m)
-        aimed = down & (expected >= p.unknown_floor_min_depth_m) & (expected <= limit)
-        floor_xy = t[:2] + world_rays[aimed, :2] * expected[aimed, None]
-        hit_points = t + world_rays[z > 0.0] * z[z > 0.0, None]
-        floor_hits = hit_points[hit_points[:, 2] < p.floor_height_m, :2]
+        dz = rays @ R[2]  # world z of each ray per metre of planar depth
+        z = frame.depth[v, u]
+        expected = np.divide(-t[2], dz, out=np.full(len(dz), np.inf, dtype=np.float32), where=dz < 0.0)
+        aimed = (expected >= p.unknown_floor_min_depth_m) & (expected <= min(p.unknown_floor_range_m, frame.range_m))
+        floor_xy = t[:2] + (rays[aimed] @ R[:2].T) * expected[aimed, None]  # where the floor should have been
+        returned = z > 0.0
+        on_floor = t[2] + dz[returned] * z[returned] < p.floor_height_m
+        floor_hits = t[:2] + (rays[returned][on_floor] @ R[:2].T) * z[returned][on_floor, None]
         self._update(self._key(floor_xy), z[aimed] <= 0.0, self._key(floor_hits))
 
     def _key(self, xy: np.ndarray) -> np.ndarray:
@@ -65,11 +64,10 @@ class UnknownFloor:
     def _update(self, aimed: np.ndarray, missed: np.ndarray, hits: np.ndarray) -> None:
         """`aimed`: the cells of the rays aimed at the floor, `missed` which of them returned nothing; `hits`:
         the cells of floor points seen."""
-        keys = np.unique(np.concatenate([aimed, hits]))
-        n_aimed, n_miss, n_hit = (np.zeros(len(keys), dtype=int) for _ in range(3))
-        np.add.at(n_aimed, np.searchsorted(keys, aimed), 1)
-        np.add.at(n_miss, np.searchsorted(keys, aimed[missed]), 1)
-        np.add.at(n_hit, np.searchsorted(keys, hits), 1)
+        keys, index = np.unique(np.concatenate([aimed, hits]), return_inverse=True)
+        n_aimed = np.bincount(index[:len(aimed)], minlength=len(keys))
+        n_miss = np.bincount(index[:len(aimed)][missed], minlength=len(keys))
+        n_hit = np.bincount(index[len(aimed):], minlength=len(keys))
         # most rays aimed there got nothing back (those that met a surface that answers did get something)
         unknown = keys[(n_miss >= self.params.unknown_min_rays) & (2 * n_miss > n_aimed)]
         seen = keys[n_hit >= np.maximum(n_miss, 1)]
