@@ -41,6 +41,7 @@ def drive(unknown_space: str, seconds: float) -> tuple[dict[str, float], Runtime
     sequence = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=GOAL[0], y=GOAL[1]), timeout_s=seconds + 5)])
     rt = Runtime(config, scene=Scene((WALL,), robot_start=(0.0, 0.0, 0.0)), sequence=sequence)
     log = rt.run_lockstep(seconds)
+    assert rt.world is not None, "the embedded simulation"
     toward = np.array([v[0] for v in log.v])  # the wall is straight ahead, along +x
     distance = np.array(log.min_distance_m, float)
     peak = int(np.argmax(toward))
