@@ -26,6 +26,8 @@ SlackGroups = Literal["sphere", "body", "node"]
 """Collision slacks per node: one per sphere, one per body (base+rack, arm) or one per node."""
 EDFGeometry = Literal["completed", "surface"]
 """What the object map's EDF measures the distance to: completed solid boxes, or observed surfaces (9a)."""
+UnknownSpaceKind = Literal["obstacle", "free"]
+"""Floor the cameras should have seen and got no depth from: an obstacle for the base, or free (the paper)."""
 
 
 @cache
@@ -358,6 +360,24 @@ class MappingParams:
     """Submap voxels with |M_i| ≤ theta_zero are the object's surface (9a). Here by construction: a submap
     keeps only the voxels surface points fell in, whose centroids are at |M_i| = 0 (`submap.py`); this is
     the paper's symbol, not a knob."""
+
+    # --- unknown space (our addition to the paper: core/mapping/unknown_floor.py) --------------------------
+    unknown_space: UnknownSpaceKind = "obstacle"
+    """'obstacle': floor cells that rays should have met within `unknown_floor_range_m` and that returned no
+    depth are columns in the EDF (so the CBF slows and stops the base before them) and in the planner's
+    occupancy; 'free': ignored, as the paper (a surface that never returns depth is then never mapped)."""
+    unknown_floor_range_m: float = 2.5
+    """Only rays whose floor point lies within this depth count (below the 3 m range, so that noise never
+    pushes a floor return out of range)."""
+    unknown_floor_min_depth_m: float = 0.3
+    """... and beyond this depth (a camera's near clip, 0.1 m, also reads 0: a hand close to the floor)."""
+    unknown_cell_m: float = 0.1
+    """Floor cells of the evidence (m)."""
+    unknown_min_rays: int = 3
+    """A cell turns unknown when, in one frame, at least this many of the rays aimed at it returned nothing and
+    they are most of those rays (2 % random dropouts never are); floor seen there again clears it."""
+    unknown_height_m: float = 1.0
+    """Height of an unknown column (m): above the base's rack (0.92 m), so no part of the base passes over."""
 
     def prior(self) -> Posterior:
         """The belief q(l, v) a new object starts with: N(mu0, sigma0²) · Beta(alpha0, beta0)."""

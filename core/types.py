@@ -120,6 +120,38 @@ class ObjectMapSnapshot:
 
 
 @dataclass(frozen=True)
+class UnknownSpace:
+    """Floor the cameras should have seen and did not (docs/method.md, "Unknown space is not free"): square
+    cells `cell_m` wide centred at `centres` (K×2, world x-y) where the rays that should have met the floor
+    within range returned no depth (a black, glossy or glass surface is in the way), each a column from the
+    floor up to `height_m`. The planner and the operator's notice read it; the controller sees it inside the
+    `LocalEDF` it comes with."""
+
+    centres: np.ndarray
+    cell_m: float
+    height_m: float
+
+    def distance(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Distance (m) from points p (..., 3) to the nearest unknown column (0 inside; inf without cells) and
+        that nearest point of the columns (..., 3)."""
+        p = np.asarray(p, dtype=float)
+        if len(self.centres) == 0:
+            return np.full(p.shape[:-1], np.inf), p.copy()
+        half = self.cell_m / 2
+        xy = np.clip(p[..., None, :2], self.centres - half, self.centres + half)  # nearest point of each cell
+        d_xy = np.sum((p[..., None, :2] - xy) ** 2, axis=-1)
+        k = np.argmin(d_xy, axis=-1)
+        nearest_xy = np.take_along_axis(xy, k[..., None, None], axis=-2)[..., 0, :]
+        z = np.clip(p[..., 2:], 0.0, self.height_m)  # every column spans the same heights
+        nearest = np.concatenate([nearest_xy, z], axis=-1)
+        return np.linalg.norm(p - nearest, axis=-1), nearest
+
+    def points(self, z_m: float) -> np.ndarray:
+        """The cells' centres at height `z_m` (K×3), e.g. as occupied points for the planner."""
+        return np.column_stack([self.centres, np.full(len(self.centres), z_m)])
+
+
+@dataclass(frozen=True)
 class LocalEDF:
     """Signed Euclidean distance field on a regular grid (docs/method.md, 9a–9b).
 
@@ -131,6 +163,8 @@ class LocalEDF:
     voxel: float
     values: np.ndarray
     cutoff: float
+    unknown: UnknownSpace | None = None
+    """The unknown space the field already holds as obstacles (None: the map does not track it)."""
 
     def _cell(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The corner values (..., 2, 2, 2) of the cell holding each point (indexed [z, y, x]), the point's

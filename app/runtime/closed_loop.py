@@ -50,6 +50,7 @@ from app.runtime.map_process import MapProcess, MapProcessError
 from app.runtime.problems import ProblemKind, ProblemLog
 from app.runtime.run_log import RunLog
 from app.runtime.snapshot import RunState
+from app.unknown_ahead import planner_points, unknown_ahead
 from core.htmpc.safety import brake_along, braking_plan
 from core.mapping.frame_exposure import at_exposure
 from core.mapping.world_map import WorldMap
@@ -58,7 +59,7 @@ from core.robot.model import RobotModel
 from core.robot.state_history import StateHistory
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
-from core.types import NQ, DepthFrame, LocalEDF, Observation, Plan, PlanStatus, RobotBackend, RobotState
+from core.types import NQ, DepthFrame, LocalEDF, Observation, Plan, PlanStatus, References, RobotBackend, RobotState
 from tasks.schema import TaskSequence
 from tasks.sequencer import Outcome, Sequencer, SubtaskProgress
 
@@ -91,9 +92,11 @@ class SequenceView:
     status: str
 
     @staticmethod
-    def of(sequencer: Sequencer) -> SequenceView:
+    def of(sequencer: Sequencer, notice: str | None = None) -> SequenceView:
+        """`notice`: what slows the robot now (unknown space ahead), after the sequencer's line."""
         path = None if sequencer.path is None else sequencer.path.copy()
-        return SequenceView(tuple(sequencer.progress), sequencer.index, path, sequencer.status_line())
+        status = sequencer.status_line() + (f" · {notice}" if notice else "")
+        return SequenceView(tuple(sequencer.progress), sequencer.index, path, status)
 
 
 def finite_state(state: RobotState) -> bool:
@@ -149,6 +152,10 @@ class ClosedLoop:
         self._last_control_t = -math.inf
         self.log = RunLog()
         self.problems = ProblemLog(1e3 / config.htmpc.control_rate_hz)
+        self.control_steps = 0
+        self.unknown_slowed_steps = 0
+        self._unknown_slowed = False
+        """Control steps, and those slowed by unknown space ahead (`app/unknown_ahead.py`)."""
 
     def _match_sensing(self) -> None:
         """The simulated robot perceives through the sensor model (`SimParams.sensor`), except with the
@@ -482,7 +489,8 @@ class ClosedLoop:
                 t_edf = time.perf_counter()
                 edf = world_map.local_edf(state.q[:2])
                 edf_ms = (time.perf_counter() - t_edf) * 1e3
-            refs = sequencer.update(state, occupied, state.t)
+            refs = sequencer.update(state, planner_points(occupied, edf), state.t)
+            notice = self._unknown_notice(state, refs, edf)
             plan, solve_ms = None, math.nan
             if refs is not None:
                 t_solve = time.perf_counter()
@@ -490,7 +498,7 @@ class ClosedLoop:
                 solve_ms = (time.perf_counter() - t_solve) * 1e3
                 self.problems.observe_plan(plan, state.t, solve_ms)
             with self.lock:
-                self.last_edf, self.view = edf, SequenceView.of(sequencer)
+                self.last_edf, self.view = edf, SequenceView.of(sequencer, notice)
                 self.timings_ms["edf"] = edf_ms
                 if self.run_state != RunState.RUNNING:  # stopped, e-stopped or faulted during the step
                     return
@@ -507,6 +515,19 @@ class ClosedLoop:
             self.notify(sequencer.status_line())
         with self.lock:
             self.timings_ms["control"] = (time.perf_counter() - t0) * 1e3
+
+    def _unknown_notice(self, state: RobotState, refs: References | None, edf: LocalEDF | None) -> str | None:
+        """Unknown space slowing the base now: counted, and a new episode recorded as a problem."""
+        p = self.controller.params
+        notice = unknown_ahead(state, refs, edf, self.robot.params.base_size_m[0] / 2, p.delta_safe_m,
+                               self.robot.limits.v_max[0] / p.gamma)
+        self.control_steps += 1
+        if notice is not None:
+            self.unknown_slowed_steps += 1
+            if not self._unknown_slowed:
+                self.problems.record(ProblemKind.UNKNOWN_SPACE, state.t, notice)
+        self._unknown_slowed = notice is not None
+        return notice
 
     def _activate_due(self, t: float) -> None:
         while self._pending_plans and self._pending_plans[0][0] <= t + 1e-9:

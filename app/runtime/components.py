@@ -25,12 +25,22 @@ def make_map(kind: MapKind, robot: RobotModel, world: SimWorld | None, params: M
     if kind == "object":
         from core.mapping import ObjectMapper
 
-        return ObjectMapper(robot, params)
+        return _with_unknown_space(ObjectMapper(robot, params), params)
     if kind == "voxel":
         from core.mapping import VoxelMap
 
-        return VoxelMap(robot, params)
+        return _with_unknown_space(VoxelMap(robot, params), params)
     raise ValueError(f"unknown map kind {kind!r}: object, voxel or ground_truth")
+
+
+def _with_unknown_space(world_map: WorldMap, params: MappingParams) -> WorldMap:
+    """A perceived map with unknown space as an obstacle when `params.unknown_space` says so (the ground truth
+    needs none: it knows every box, dark ones too)."""
+    if params.unknown_space != "obstacle":
+        return world_map
+    from core.mapping.unknown_space_map import UnknownSpaceMap
+
+    return UnknownSpaceMap(world_map, params)
 
 
 def make_controller(robot: RobotModel, params: HTMPCParams) -> HTMPC:

@@ -169,6 +169,8 @@ def trial(params: dict) -> dict:
         "odometry_error_m_at_end": float(np.hypot(*rt.backend.odometry_estimate.error[:2])),
         "odometry_error_rad_at_end": float(abs(rt.backend.odometry_estimate.error[2])),
         "status": rt.status_line(),
+        "control_steps": rt.closed_loop.control_steps,
+        "unknown_slowed_steps": rt.closed_loop.unknown_slowed_steps,
     }
 
 
@@ -194,8 +196,15 @@ def summarise(results: list[dict]) -> dict[str, float]:
             f"{kind}_collision_free_rate": rate(rows, "collision_free"),
             f"{kind}_odometry_error_m_at_end_median": stat(rows, "odometry_error_m_at_end"),
             f"{kind}_odometry_error_rad_at_end_median": stat(rows, "odometry_error_rad_at_end"),
+            f"{kind}_unknown_slowed_steps_pct": _slowed_pct(rows),
         }
     return figures | solver_figures(results)
+
+
+def _slowed_pct(rows: list[dict]) -> float:
+    """Share of the control steps slowed by unknown space ahead (`app/unknown_ahead.py`), over all trials (%)."""
+    steps = sum(r.get("control_steps", 0) for r in rows)
+    return 100.0 * sum(r.get("unknown_slowed_steps", 0) for r in rows) / steps if steps else math.nan
 
 
 def _pairwise(results: list[dict], key: str, kind: str) -> list[float]:
