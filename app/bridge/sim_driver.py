@@ -201,7 +201,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(str(err))
     logging.basicConfig(level=args.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     set_thread_niceness(args.niceness)  # before any thread starts: they inherit it
-    world = SimWorld(RobotModel(), SimParams(), load_scene(args.scene))
+    try:
+        world = SimWorld(RobotModel(), SimParams(), load_scene(args.scene))
+    except (OSError, ValueError) as err:  # a bad file, or a box inside the robot (SceneEditError)
+        parser.error(str(err))
     robot = SimRobot(world, seed=args.seed, cameras=tuple(c for c in args.cameras.split(",") if c))
     client = DriverClient(args.url, token, name="sim_driver", clock=lambda: world.time)
     if not _connect(client, args.connect_timeout):

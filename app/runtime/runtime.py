@@ -37,6 +37,7 @@ from app.runtime.problems import ProblemLog
 from app.runtime.run_log import RunLog
 from app.runtime.snapshot import RunState, Snapshot
 from app.runtime.snapshot_builder import build_snapshot, status_line
+from app.target_check import check_targets
 from core.mapping.world_map import WorldMap
 from core.params import ConstraintKind
 from core.robot.model import RobotModel
@@ -47,6 +48,7 @@ from core.types import NQ, DepthFrame, LocalEDF, Plan, RobotBackend, RobotState
 from tasks.schema import TaskSequence
 from tasks.sequence_file import load_sequence
 from tasks.sequencer import Sequencer
+from tasks.validation import TargetFinding
 
 if TYPE_CHECKING:
     from core.htmpc import HTMPC
@@ -256,6 +258,8 @@ class Runtime:
     def reset(self, scene: Scene | None = None) -> None:
         """Reload the scene (robot back at its start), clear the map, the plan, the progress and a fault;
         a new closed loop, with new live threads if they were running."""
+        if scene is not None and self.world is not None:
+            self.world.check_scene(scene)  # a box inside the robot is refused before anything stops
         live = self._live is not None
         self._stop_live()
         if scene is not None:
@@ -290,11 +294,17 @@ class Runtime:
 
     # --- authoring -------------------------------------------------------------------------------
 
-    def set_sequence(self, sequence: TaskSequence) -> None:
-        """Replace the authored sequence; a running sequence keeps its copy until the next start."""
+    def set_sequence(self, sequence: TaskSequence, *, scene_may_change: bool = False, indices: list[int] | None = None,
+                     source: str = "sequence", text: str | None = None) -> list[TargetFinding]:
+        """Replace the authored sequence once its targets pass the target checks (`app.target_check`, as at
+        every other edge; `indices`: only those subtasks); a running sequence keeps its copy until the next
+        start. Raises `TargetError` (nothing changes); returns the warnings."""
+        warnings = check_targets(self, sequence, scene_may_change=scene_may_change, indices=indices, source=source,
+                                 text=text)
         self.sequence = sequence
         self.sequence_version += 1
         self._loop.set_sequence(sequence)
+        return warnings
 
     # --- scene edits (simulation only) -------------------------------------------------------------
 

@@ -19,7 +19,6 @@ import viser.transforms as vtf
 from app.recording.replay import ReplaySource
 from app.runtime import Runtime
 from app.runtime.snapshot import Snapshot
-from app.target_check import check_targets
 from app.ui.authoring import (
     PRIORITY_CHOICES,
     SequenceHistory,
@@ -122,18 +121,19 @@ class AuthoringPanel:
     def _commit(self, seq: TaskSequence, select: int | None = None, text: str | None = None,
                 source: str = "sequence") -> None:
         """Check the targets that changed, then make `seq` the authored sequence (caller holds the lock)."""
-        indices = changed_subtasks(self.history.current, seq)
-        warnings = check_targets(self.runtime, seq, scene_may_change=self.scene_may_change.value, indices=indices,
-                                 source=source, text=text) if indices else []
-        self._apply(seq, select)
+        warnings = self._apply(seq, select, changed_subtasks(self.history.current, seq), source=source, text=text)
         self.history.push(seq)
         for finding in warnings:
             notify_all(self.server, "Target accepted with a warning", str(finding), color="yellow")
 
-    def _apply(self, seq: TaskSequence, select: int | None) -> None:
-        self.runtime.set_sequence(seq)
+    def _apply(self, seq: TaskSequence, select: int | None, indices: list[int] | None, source: str = "sequence",
+               text: str | None = None) -> list[TargetFinding]:
+        """Make `seq` the runtime's sequence; the runtime checks the targets of subtasks `indices` (None: all)."""
+        warnings = self.runtime.set_sequence(seq, scene_may_change=self.scene_may_change.value, indices=indices,
+                                             source=source, text=text)
         self._version = self.runtime.sequence_version
         self._refresh(seq, select)
+        return warnings
 
     def _refresh(self, seq: TaskSequence | None = None, select: int | None = None) -> None:
         seq = seq or self.history.current
@@ -291,7 +291,7 @@ class AuthoringPanel:
             seq = self.history.undo() if action == "Undo" else self.history.redo()
             if seq == before:
                 raise ValueError(f"nothing to {action.lower()}")
-            self._apply(seq, follow_selection(before, seq, self.index))
+            self._apply(seq, follow_selection(before, seq, self.index), [])  # checked when it was made
         notify_all(self.server, action, describe_change(before, seq), color="blue")
 
     def _download(self, client: viser.ClientHandle | None) -> None:
@@ -302,9 +302,7 @@ class AuthoringPanel:
         text = upload.content.decode("utf-8", errors="replace")
         seq = parse_sequence(text, source=upload.name)
         with self._lock:
-            warnings = check_targets(self.runtime, seq, scene_may_change=self.scene_may_change.value,
-                                     source=upload.name, text=text)
-            self._apply(seq, 0 if seq.subtasks else None)
+            warnings = self._apply(seq, 0 if seq.subtasks else None, None, source=upload.name, text=text)
             self.history.push(seq)
         for finding in warnings:
             notify_all(self.server, "Target accepted with a warning", str(finding), color="yellow")

@@ -178,7 +178,7 @@ def run_sequence(rt: Runtime, sequence: TaskSequence, max_s: float, on_control) 
     remaining = list(sequence.subtasks)
     t_end = rt.time + max_s
     while remaining and rt.time < t_end:
-        rt.set_sequence(TaskSequence(name=sequence.name, subtasks=remaining))
+        rt.set_sequence(TaskSequence(name=sequence.name, subtasks=remaining), scene_may_change=True)  # boxes move here
         rt.run_lockstep(t_end - rt.time, on_control=on_control)
         progress = rt.sequencer.progress
         outcomes += [{"name": p.name, "outcome": p.outcome.value, "elapsed_s": p.elapsed_s, "message": p.message}

@@ -124,11 +124,14 @@ class SimWorld:
             raise SceneEditError(f"q must have 9 entries, got shape {q.shape}")
         _finite(q, "q")
         with self.lock:
-            self.data.qpos[self._qadr] = q
-            self.data.qvel[self._vadr] = 0.0 if v is None else v
-            self.data.ctrl[:] = 0.0
-            mujoco.mj_forward(self.model, self.data)
+            self._place(q, v)
             self.placements += 1
+
+    def _place(self, q: np.ndarray, v: np.ndarray | None) -> None:
+        self.data.qpos[self._qadr] = q
+        self.data.qvel[self._vadr] = 0.0 if v is None else v
+        self.data.ctrl[:] = 0.0
+        mujoco.mj_forward(self.model, self.data)
 
     def set_velocity_command(self, qdot: np.ndarray) -> None:
         """Velocity set-points for the actuators; NaN becomes 0, values are clipped to the limits."""
@@ -177,19 +180,59 @@ class SimWorld:
         return next((b for b, s in self._slot_of.items() if s == slot), None)
 
     def load_scene(self, scene: Scene, place_robot: bool = True) -> None:
-        """Replace all boxes by the scene's; optionally put the robot at the scene's start."""
-        with self.lock:
-            for box_id in list(self._boxes):
-                self.remove_box(box_id)
-            if place_robot:
-                from core.robot.model import READY_Q
+        """Replace all boxes by the scene's; optionally put the robot at the scene's start.
 
-                q = READY_Q.copy()
-                q[:3] = scene.robot_start
-                self.set_robot(q)
-            for box in scene.boxes:
-                self.add_box(box, check_robot=False)
-            self.scene_name = scene.name
+        A scene with a box that overlaps the robot (where it starts) raises `SceneEditError`, as a box added
+        while running does, and leaves the world as it was."""
+        with self.lock:
+            before = self._saved()
+            try:
+                self._replace_boxes(scene, place_robot)
+            except SceneEditError:
+                self._restore(before)
+                raise
+            if place_robot:
+                self.placements += 1
+
+    def check_scene(self, scene: Scene) -> None:
+        """Raise `SceneEditError` if loading `scene` would put a box inside the robot at the scene's start;
+        the world is left as it was either way (a dry run of `load_scene`)."""
+        with self.lock:
+            before = self._saved()
+            try:
+                self._replace_boxes(scene, place_robot=True)
+            finally:
+                self._restore(before)
+
+    def _replace_boxes(self, scene: Scene, place_robot: bool) -> None:
+        for box_id in list(self._boxes):
+            self.remove_box(box_id)
+        if place_robot:
+            from core.robot.model import READY_Q
+
+            q = READY_Q.copy()
+            q[:3] = scene.robot_start
+            self._place(q, None)
+        for box in scene.boxes:
+            try:
+                self.add_box(box)
+            except SceneEditError as err:
+                raise SceneEditError(f"scene {scene.name!r} refused: {err}") from err
+        self.scene_name = scene.name
+
+    def _saved(self) -> tuple[tuple[Box, ...], np.ndarray, np.ndarray, np.ndarray, str]:
+        d = self.data
+        return tuple(self._boxes.values()), d.qpos.copy(), d.qvel.copy(), d.ctrl.copy(), self.scene_name
+
+    def _restore(self, saved: tuple[tuple[Box, ...], np.ndarray, np.ndarray, np.ndarray, str]) -> None:
+        boxes, qpos, qvel, ctrl, name = saved
+        for box_id in list(self._boxes):
+            self.remove_box(box_id)
+        self.data.qpos[:], self.data.qvel[:], self.data.ctrl[:] = qpos, qvel, ctrl
+        mujoco.mj_forward(self.model, self.data)
+        for box in boxes:
+            self.add_box(box, check_robot=False)
+        self.scene_name = name
 
     def scene(self) -> Scene:
         """The current boxes as a `Scene` (robot start = the robot's current base pose)."""

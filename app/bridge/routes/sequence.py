@@ -51,8 +51,7 @@ def load(attached: Attached, body: SequenceIn) -> SequenceOut:
     422 lists every problem with its field and line (schema, and targets the robot cannot reach or that are too
     close to a box, each with the nearest acceptable value); nothing is loaded then."""
     sequence = parse_sequence(body.yaml, "request")
-    warnings = check_targets(attached.runtime, sequence, scene_may_change=body.scene_may_change, source="request",
-                             text=body.yaml)
-    attached.runtime.set_sequence(sequence)
+    warnings = attached.runtime.set_sequence(sequence, scene_may_change=body.scene_may_change, source="request",
+                                             text=body.yaml)
     attached.invalidate()
     return _out(sequence, attached.runtime.sequence_version, [str(w) for w in warnings])

@@ -173,3 +173,21 @@ def test_resized_boxes_collide_off_centre(world):
     run(world, [0.4, 0, 0, 0, 0, 0, 0, 0, 0], 3.0)
     assert world.collisions and world.collisions[0].box_id == "long"
     assert world.robot_box_distance()[0] > -0.02  # stopped at the face, not inside
+
+
+def test_a_scene_with_a_box_inside_the_robot_is_refused_and_nothing_lost(world):
+    """Loading a scene checks its boxes against the robot at the scene's start, as adding a box does; the
+    world keeps its boxes and robot (a dry run, `check_scene`, changes nothing either way)."""
+    world.load_scene(Scene((Box("keep", (3.0, 0.0, 0.3)),), name="before"))
+    q = world.state().q.copy()
+    placements = world.placements
+    bad = Scene((Box("far", (4.0, 2.0, 0.3)), Box("inside", (0.1, 0.0, 0.3))), robot_start=(0.0, 0.0, 0.0),
+                name="bad")
+    for load in (world.load_scene, world.check_scene):
+        with pytest.raises(SceneEditError, match="scene 'bad' refused: box 'inside' would overlap the robot by"):
+            load(bad)
+        assert [b.id for b in world.boxes()] == ["keep"] and world.scene_name == "before"
+        np.testing.assert_array_equal(world.state().q, q)
+        assert world.placements == placements
+    world.check_scene(Scene((Box("ok", (2.0, 0.0, 0.3)),)))
+    assert [b.id for b in world.boxes()] == ["keep"]
