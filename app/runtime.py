@@ -39,7 +39,15 @@ from app.run_log import RunLog
 from app.snapshot import RunState, Snapshot
 from app.snapshot_builder import build_snapshot, status_line
 from core.mapping.world_map import WorldMap
-from core.params import ConstraintKind, HTMPCParams, MappingParams, RobotParams, SequencerParams, SimParams
+from core.params import (
+    ConstraintKind,
+    HTMPCParams,
+    LocalizationParams,
+    MappingParams,
+    RobotParams,
+    SequencerParams,
+    SimParams,
+)
 from core.robot.model import RobotModel
 from core.sim.scene import Box, Scene, load_scene, random_scene
 from core.sim.sim_robot import SimRobot
@@ -88,6 +96,7 @@ class RuntimeConfig:
     sequencer: SequencerParams = field(default_factory=SequencerParams)
     sim: SimParams = field(default_factory=SimParams)
     robot: RobotParams = field(default_factory=RobotParams)
+    localization: LocalizationParams = field(default_factory=LocalizationParams)
 
     def __post_init__(self) -> None:
         if self.map_kind not in MAP_KINDS:
