@@ -413,7 +413,8 @@ class ClosedLoop:
         self.localizer.apply_due(state.t)
         T = self.localizer.world_from_odom
         q, v = state.q.copy(), state.v.copy()
-        q[:3] = se2.compose(T, state.q[:3])
+        q[:2] = se2.compose(T, state.q[:3])[:2]
+        q[2] = state.q[2] + T[2]  # a joint: never wrapped (the controller needs it continuous)
         v[:2] = se2.rot(float(T[2])) @ state.v[:2]
         T4 = se2.to_matrix(T)
         return RobotState(state.t, q, v), tuple(replace(f, T_world_camera=T4 @ f.T_world_camera) for f in frames)
