@@ -413,3 +413,77 @@ class SequencerParams:
     plan's nearest point to it); re-plans then start from the next one."""
     goal_slowdown_m: float = 0.8
     """Within this distance of the final goal the reference stops advancing past it."""
+
+
+@dataclass(frozen=True)
+class LocalizationParams:
+    """Change-aware localization of the base (core/localization; docs/method.md, "State estimation").
+
+    Odometry predicts, scan-to-map registration of the base camera's frames against the map's trusted surfaces
+    corrects, every correction gated; starting values from docs/decisions.md ("Localization")."""
+
+    enabled: bool = False
+    """Off by default: see docs/decisions.md ("Localization") for the measurement behind the choice."""
+    camera: str = "base"
+    """Whose frames are registered (the base camera sees the floor and the boxes around the base)."""
+    rate_hz: float = 2.0
+    """Registrations per second of robot time (frames in between are skipped)."""
+    processing_s: float = 0.05
+    """Lockstep: a correction applies at its frame's stamp plus this modelled processing time."""
+    drift_m_per_sqrt_m: float = 0.01
+    """Process noise of the odometry prediction: position std per axis after 1 m driven (m/√m)."""
+    drift_rad_per_sqrt_rad: float = 0.01
+    """Process noise of the odometry prediction: heading std after 1 rad turned (rad/√rad)."""
+    initial_sigma_m: float = 0.001
+    initial_sigma_rad: float = 0.001
+    """The start pose defines the world frame: it is known up to these."""
+    stride_px: int = 2
+    """Every stride-th pixel of a frame, each way, is registered."""
+    source_voxel_m: float = 0.05
+    """The frame's points are thinned to one a voxel of this size before registration."""
+    max_range_m: float = 3.0
+    """Depths beyond this (m) are left out (noise grows as z²)."""
+    reference_crop_m: float = 4.5
+    """Reference points farther than this (m, in x-y) from the predicted base are left out."""
+    floor_step_m: float = 0.1
+    """The floor z = 0 enters the reference as a grid of this pitch (m) around the predicted base."""
+    radius_sigmas: float = 3.0
+    radius_margin_m: float = 0.05
+    radius_min_m: float = 0.1
+    radius_max_m: float = 0.5
+    """Correspondence radius clip(radius_sigmas σ + radius_margin_m, radius_min_m, radius_max_m): tied to the
+    pose's current uncertainty σ, so a box moved farther than that finds no partner and cannot drag the pose."""
+    max_iterations: int = 20
+    min_source_points: int = 300
+    """A frame with fewer points after thinning is not registered (counted as a failure)."""
+    min_inlier_share: float = 0.5
+    """Gate: the share of the frame's points with a partner within the radius."""
+    chi2_gate: tuple[float, float, float] = (6.63, 9.21, 11.34)
+    """Gate: χ² of the innovation against the prediction, 1 % tail for 1, 2, 3 constrained directions."""
+    degenerate_information: float = 2.0
+    """A direction whose information per inlier (Schur complement of the registration's H on x, y, yaw; yaw
+    weighed by the points' RMS distance from the base) is below this gets no correction: the floor alone reads
+    ~0.5 along every direction of the floor, a single wall ~0.5 along itself and ≥ 100 across."""
+    sigma_xy_m: float = 0.01
+    sigma_yaw_rad: float = 0.003
+    """Measurement std of a well-constrained direction (never H⁻¹ as it is: it claims cm along directions
+    nothing constrains); a direction with information λ < 5 × `degenerate_information` is inflated by
+    √(5 × degenerate_information / λ)."""
+    min_trusted_points: int = 150
+    """Odometry stays alone in charge until this many trusted object surface points (5 cm apart: ~0.4 m² of
+    surface) lie within the camera's range of the predicted base."""
+    trust_consistency: float = 0.7
+    """An object enters the reference when its E[v] is at least this…"""
+    trust_observations: int = 5
+    """…and it has been seen at least this many times."""
+    disagreement_m: float = 0.04
+    """After registration, an object whose frame points sit farther than this (median, m) from its reference
+    surface disagrees: it leaves the reference (registration runs again without it) and is reported to the
+    map as change evidence."""
+    min_object_points: int = 20
+    """An object's disagreement is judged on at least this many of the frame's points near it."""
+    exclusion_s: float = 10.0
+    """A disagreeing object stays out of the reference this long (s): the map meanwhile re-places or removes it."""
+    reference_period_s: float = 2.0
+    """The loop asks the map for its trusted surfaces at most this often (s); the prepared reference is kept
+    while the surfaces and the base's 1 m cell stay the same."""

@@ -317,3 +317,35 @@ class RobotBackend(Protocol):
     def command(self, qdot: np.ndarray, t: float) -> None:
         """Joint velocity command qdot[9] (base x, y, yaw in the world frame; arm joints), stamped t."""
         ...
+
+
+class LocalizationStatus(StrEnum):
+    """Who is in charge of the base pose estimate (`PoseEstimate.status`)."""
+
+    ODOMETRY = "odometry"
+    """Odometry alone: start-up, after Reset, or too little trusted surface in view so far."""
+    LOCALIZED = "localized"
+    """At least one registration against the map's trusted surfaces has been accepted."""
+
+
+@dataclass(frozen=True)
+class PoseEstimate:
+    """The base pose the loop uses: pose (x, y, yaw) in the world frame, its covariance (3×3, m² and rad²)
+    and who is in charge (docs/design.md, "State estimation")."""
+
+    t: float
+    pose: np.ndarray
+    covariance: np.ndarray
+    status: LocalizationStatus
+
+
+@dataclass(frozen=True)
+class ReferenceSurface:
+    """What the map offers localization to register against: world points (P×3) of surfaces it trusts and
+    the id of the mapped object each belongs to (-1: not an object, e.g. a voxel map's occupied cells).
+
+    The map fills it (`core/mapping/reference_surface.py`); localization reads it and never the map itself."""
+
+    t: float
+    points: np.ndarray
+    object_ids: np.ndarray

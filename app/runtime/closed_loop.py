@@ -50,16 +50,29 @@ from app.runtime.map_process import MapProcess, MapProcessError
 from app.runtime.problems import ProblemKind, ProblemLog
 from app.runtime.run_log import RunLog
 from app.runtime.snapshot import RunState
-from app.unknown_ahead import planner_points, unknown_ahead
+from app.runtime.unknown_ahead import planner_points, unknown_ahead
 from core.htmpc.safety import brake_along, braking_plan
+from core.localization import Localizer, se2
 from core.mapping.frame_exposure import at_exposure
+from core.mapping.reference_surface import occupied_surface, trusted_surface
 from core.mapping.world_map import WorldMap
 from core.params import ConstraintKind, SensorParams
 from core.robot.model import RobotModel
 from core.robot.state_history import StateHistory
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
-from core.types import NQ, DepthFrame, LocalEDF, Observation, Plan, PlanStatus, References, RobotBackend, RobotState
+from core.types import (
+    NQ,
+    DepthFrame,
+    LocalEDF,
+    Observation,
+    Plan,
+    PlanStatus,
+    References,
+    ReferenceSurface,
+    RobotBackend,
+    RobotState,
+)
 from tasks.schema import TaskSequence
 from tasks.sequencer import Outcome, Sequencer, SubtaskProgress
 
@@ -155,7 +168,12 @@ class ClosedLoop:
         self.control_steps = 0
         self.unknown_slowed_steps = 0
         self._unknown_slowed = False
-        """Control steps, and those slowed by unknown space ahead (`app/unknown_ahead.py`)."""
+        """Control steps, and those slowed by unknown space ahead (`app/runtime/unknown_ahead.py`)."""
+        self.localizer = self._localizer()
+        self._surface: ReferenceSurface | None = None
+        self.reference_override: Callable[[float], ReferenceSurface] | None = None
+        """Benchmarks: a reference other than the map's (the true scene's surfaces, to measure registration
+        apart from the map it registers against)."""
 
     def _match_sensing(self) -> None:
         """The simulated robot perceives through the sensor model (`SimParams.sensor`), except with the
@@ -163,6 +181,11 @@ class ClosedLoop:
         if isinstance(self.backend, SimRobot):
             exact = self.config.map_kind == "ground_truth"
             self.backend.set_sensor(SensorParams.ideal() if exact else self.config.sim.sensor)
+
+    def _localizer(self) -> Localizer | None:
+        """Localization (`LocalizationParams.enabled`) for a perceived map; the start pose is the world frame."""
+        p = self.config.localization
+        return Localizer(p) if p.enabled and self.config.map_kind != "ground_truth" else None
 
     def _initial_state(self) -> RobotState:
         state = self.backend.observe().state  # also drops frames of an earlier scene
@@ -404,14 +427,75 @@ class ClosedLoop:
                 self.state = RobotState(t, previous.q, previous.v)
             self.fault(f"non-finite robot state at t = {t:.2f} s")
             return self.state
-        if obs.frames and self.fault_reason is None:
+        frames = obs.frames
+        if self.localizer is not None:
+            state, frames = self._reposed(state, frames)
+        if frames and self.fault_reason is None:
             with self.frames_ready:
-                self._frames.extend(obs.frames)
+                self._frames.extend(frames)
                 self.frames_ready.notify()
         with self.lock:
             self.state = state
             self.history.append(state)
         return state
+
+    def _reposed(self, state: RobotState, frames: tuple[DepthFrame, ...]
+                 ) -> tuple[RobotState, tuple[DepthFrame, ...]]:
+        """The backend's odometry-frame state and frames in the world: T_world←odom after the odometry's
+        prediction and the corrections due by now (`core/localization`)."""
+        assert self.localizer is not None
+        self.localizer.predict(state.q[:3])
+        self.localizer.apply_due(state.t)
+        T = self.localizer.world_from_odom
+        q, v = state.q.copy(), state.v.copy()
+        q[:2] = se2.compose(T, state.q[:3])[:2]
+        q[2] = state.q[2] + T[2]  # a joint: never wrapped (the controller needs it continuous)
+        v[:2] = se2.rot(float(T[2])) @ state.v[:2]
+        T4 = se2.to_matrix(T)
+        return RobotState(state.t, q, v), tuple(replace(f, T_world_camera=T4 @ f.T_world_camera) for f in frames)
+
+    def _to_odometry(self, qdot: np.ndarray) -> np.ndarray:
+        """A world-frame command in the backend's odometry frame."""
+        if self.localizer is None:
+            return qdot
+        out = qdot.copy()
+        out[:2] = se2.rot(-float(self.localizer.world_from_odom[2])) @ qdot[:2]
+        return out
+
+    def localize(self, frames: tuple[DepthFrame, ...]) -> None:
+        """Register the frames localization wants (at their exposure, posed by the current estimate) against
+        the map's trusted surfaces; hand the objects that disagreed to the map as change evidence."""
+        localizer = self.localizer
+        if localizer is None:
+            return
+        latency = self.camera_latency_s()
+        for frame in frames:
+            if not localizer.wants(frame):
+                continue
+            with self.lock:
+                exposure = self.history.at(frame.t - latency)
+            base = (exposure or self.state).q[:3]
+            localizer.correct(frame, base, self._reference_surface(frame.t))
+        evidence = localizer.take_change_evidence()
+        if evidence:
+            with self.using_map() as world_map:
+                note = getattr(world_map, "note_change_evidence", None)
+                if note is not None:
+                    note(evidence)
+
+    def _reference_surface(self, t: float) -> ReferenceSurface:
+        """The map's trusted surfaces, asked for at most every `reference_period_s`."""
+        p = self.config.localization
+        if self._surface is None or t >= self._surface.t + p.reference_period_s:
+            if self.reference_override is not None:
+                self._surface = self.reference_override(t)
+                return self._surface
+            with self.using_map() as world_map:
+                snap = world_map.snapshot()
+                surface = (trusted_surface(snap, p.trust_consistency, p.trust_observations) if snap.objects
+                           else occupied_surface(t, world_map.occupied_points()))
+            self._surface = replace(surface, t=t)
+        return self._surface
 
     def camera_latency_s(self) -> float:
         """The calibrated exposure-to-stamp latency (`MappingParams.camera_latency_s`); unset, the simulated
@@ -463,6 +547,7 @@ class ClosedLoop:
             world_map.integrate(Observation(state=state, frames=frames, odometry=None))
         with self.lock:
             self.timings_ms["mapping"] = (time.perf_counter() - t0) * 1e3
+        self.localize(frames)
 
     def _at_exposure(self, frames: list[DepthFrame]) -> tuple[tuple[DepthFrame, ...], RobotState]:
         """The frames moved back to their exposure (camera latency compensated) and the robot's state at
@@ -547,7 +632,7 @@ class ClosedLoop:
             qdot = self.robot.limits.clip_velocity(qdot)
             self.last_qdot = qdot
             self.commanded = True
-            self.backend.command(qdot, t)
+            self.backend.command(self._to_odometry(qdot), t)
         return qdot
 
     def _command_at(self, t: float) -> np.ndarray:

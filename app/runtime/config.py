@@ -9,7 +9,15 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from app.map_kind import MAP_KINDS, MapKind
-from core.params import ConstraintKind, HTMPCParams, MappingParams, RobotParams, SequencerParams, SimParams
+from core.params import (
+    ConstraintKind,
+    HTMPCParams,
+    LocalizationParams,
+    MappingParams,
+    RobotParams,
+    SequencerParams,
+    SimParams,
+)
 
 __all__ = ["CONSTRAINT_KINDS", "DEFAULT_SCENE", "DEFAULT_SEQUENCE", "ROOT", "RuntimeConfig"]
 
@@ -42,6 +50,7 @@ class RuntimeConfig:
     sequencer: SequencerParams = field(default_factory=SequencerParams)
     sim: SimParams = field(default_factory=SimParams)
     robot: RobotParams = field(default_factory=RobotParams)
+    localization: LocalizationParams = field(default_factory=LocalizationParams)
 
     def __post_init__(self) -> None:
         if self.map_kind not in MAP_KINDS:

@@ -333,6 +333,18 @@ class ObjectMapper:
             obj.posterior = consistency.cap(post, p.beta_cap)
             obj.updates += 1
 
+    def note_change_evidence(self, ids: Iterable[int]) -> None:
+        """Localization found these objects off their surfaces after aligning a frame: one forced outlier each
+        of the paper's weight 1 (a 0.1 m move sits inside tau, so Delta alone barely lowers E[v])."""
+        p = self.params
+        for object_id in ids:
+            obj = self.objects.get(object_id)
+            if obj is not None:
+                post = consistency.forced_outlier(obj.posterior, p.semantic_static_s, p.semantic_weight_k, 1.0)
+                obj.posterior = consistency.cap(post, p.beta_cap)
+                obj.updates += 1
+        self._remove_changed()
+
     def forced_outlier_weight(self, counts: VisibilityCounts) -> float:
         """w = w_max · f_r · min(1, n_through / n_sat) if f ≥ f_min and enough surface was expected, else 0
         (f: the seen-through fraction of the expected-visible surface, f_r: of its part that returned depth)."""

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from app.runtime import Runtime, RuntimeConfig
-from app.snapshot import RunState
+from app.runtime.snapshot import RunState
 from app.ui.run_panel import CONTROL_HINT, ESTOP_HINT
 from core.sim.scene import Scene
 from tasks import BasePose, BaseSubtask, TaskSequence

@@ -4,9 +4,9 @@ the object map perceiving through the sensor model."""
 
 import pytest
 
-from app.problems import ProblemKind, summary_line
+from app.runtime.problems import ProblemKind, summary_line
 from app.runtime import Runtime, RuntimeConfig
-from app.snapshot import RunState
+from app.runtime.snapshot import RunState
 from core.sim.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 

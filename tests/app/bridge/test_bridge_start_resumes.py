@@ -9,7 +9,7 @@ from websockets.sync.client import ClientConnection
 
 from app.bridge.server import BridgeServer
 from app.runtime import Runtime, RuntimeConfig
-from app.snapshot import RunState
+from app.runtime.snapshot import RunState
 from tests.app.bridge.conftest import StateStreamer, wait_until
 
 

@@ -1,0 +1,242 @@
+"""Localization: the base pose error over E4's aisle laps with and without `core/localization`, on the same seeds.
+
+    python -m bench.localization [--quick]
+
+The three-lap aisle run of E4 (`bench/experiments/e4_long_term.py`: its scene with the loose boxes, its lap
+sequence) through the whole sensor model (depth noise, dropouts, flying pixels, odometry drift, camera time
+offset), object map and HTMPC on. At every control step the x-y and heading error of the pose the loop uses
+against the simulator's truth (no trajectory alignment): `ate_rmse_m`, `ate_max_m`, `final_error_m`, per lap
+`ate_rmse_lap1_m` …, `rpe_per_10m` (error growth over 10 m driven), `heading_rmse_deg`; the registration's
+time (`registration_ms_p50`/`_p95`, the reference's rebuild apart), its verdicts (`accepted`, `rejected`,
+`degenerate`), and `false_corrections_pct`: accepted corrections that left the pose > 5 cm or 1° from the
+truth, with 0 / 30 / 60 % of the boxes moved by 0.1 m and by 0.3 m at the start of laps 2 and 3
+(`false_corrections_pct_<pct>_<cm>`; `false_corrections_pct` the worst). `_odom` figures are the same run
+without localization. The control step's median with and without (`control_ms_median_*`).
+
+`--quick`: one seed, lap 1, nothing moved: ATE and timing only.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from app.runtime import Runtime
+from bench.experiments.e4_long_term import SEED, lap_sequence, layouts, run_sequence, scene
+from bench.experiments.trials import quiet_logs, runtime_config
+from bench.report import bench_args, percentile, write_result
+from core.localization.gates import FAILURES, Verdict
+from core.localization.localizer import DEGENERATE
+from core.localization.se2 import wrap
+from core.params import LocalizationParams
+from core.sim.scene import Box
+from core.types import ReferenceSurface
+
+log = logging.getLogger(__name__)
+
+NAME = "localization"
+LAP_S = 150.0
+FALSE_M, FALSE_DEG = 0.05, 1.0
+MOVES = ((0.0, 0.0), (0.3, 0.1), (0.6, 0.1), (0.3, 0.3), (0.6, 0.3))
+"""(share of the boxes, metres) moved at the start of laps 2 and 3."""
+
+
+class _Track:
+    """`on_control`: the loop's pose and the truth at every control step, and the lap each belongs to."""
+
+    def __init__(self) -> None:
+        self.rows: list[tuple[float, int, np.ndarray, np.ndarray]] = []
+        self.lap = 0
+
+    def __call__(self, rt: Runtime) -> None:
+        truth = rt.backend.true_state().q[:3]  # type: ignore[attr-defined]
+        self.rows.append((rt.time, self.lap, rt.state.q[:3].copy(), truth.copy()))
+
+
+def move_boxes(rt: Runtime, share: float, distance_m: float, rng: np.random.Generator) -> int:
+    """Move `share` of the scene's boxes by `distance_m` in a random horizontal direction (where allowed)."""
+    assert rt.world is not None
+    boxes = rt.world.boxes()
+    moved = 0
+    for box in rng.permutation(len(boxes))[: int(round(share * len(boxes)))]:
+        b = boxes[int(box)]
+        angle = rng.uniform(0, 2 * math.pi)
+        x, y, z = b.position
+        try:
+            rt.move_box(b.id, (x + distance_m * math.cos(angle), y + distance_m * math.sin(angle), z))
+            moved += 1
+        except ValueError:
+            continue
+    return moved
+
+
+def true_surface(rt: Runtime, step_m: float = 0.05) -> Callable[[float], ReferenceSurface]:
+    """A reference of the true scene: the boxes' sides and tops sampled every step_m (an oracle map)."""
+    assert rt.world is not None
+    world = rt.world
+
+    def surface(t: float) -> ReferenceSurface:
+        parts = [box_surface(b, step_m) for b in world.boxes()]
+        ids = np.concatenate([np.full(len(p), i) for i, p in enumerate(parts)]) if parts else np.zeros(0, int)
+        return ReferenceSurface(t, np.vstack(parts) if parts else np.zeros((0, 3)), ids.astype(int))
+    return surface
+
+
+def box_surface(b: Box, step_m: float) -> np.ndarray:
+    """Points on the four sides and the top of a box, world frame."""
+    hx, hy, hz = (s / 2 for s in b.size)
+    u = np.arange(-1.0, 1.0 + 1e-9, step_m / max(hx, hy, hz, step_m))
+    a, c = np.meshgrid(u, u)
+    a, c = a.ravel(), c.ravel()
+    one = np.ones_like(a)
+    local = np.vstack([np.column_stack([s * hx * one, a * hy, c * hz]) for s in (-1, 1)]
+                      + [np.column_stack([a * hx, s * hy * one, c * hz]) for s in (-1, 1)]
+                      + [np.column_stack([a * hx, c * hy, hz * one])])
+    T = b.pose()
+    return local @ T[:3, :3].T + T[:3, 3]
+
+
+def run(seed: int, laps: int, localize: bool, share: float = 0.0, distance_m: float = 0.0,
+        oracle: bool = False) -> dict:
+    """One run: the track of poses, the localizer's corrections and the control step's times (`oracle`: the
+    localizer registers against the true scene instead of the map)."""
+    config = runtime_config(map_kind="object", seed=seed, localization=LocalizationParams(enabled=localize))
+    first = layouts(SEED, 1)[0]
+    rt = Runtime(config, scene=scene(first), sequence=lap_sequence(1))
+    if oracle:
+        rt.closed_loop.reference_override = true_surface(rt)
+    track, rng = _Track(), np.random.default_rng([seed, 7])
+    completed = 0
+    t0 = time.perf_counter()
+    for lap in range(laps):
+        track.lap = lap
+        if lap and share > 0.0:
+            move_boxes(rt, share, distance_m, rng)
+        outcomes = run_sequence(rt, lap_sequence(1), LAP_S, track)
+        completed += sum(o["outcome"] == "done" for o in outcomes)
+    wall_s = time.perf_counter() - t0
+    localizer = rt.closed_loop.localizer
+    control = [t.get("control", math.nan) for t in rt.log.timings_ms]
+    return {"rows": track.rows, "corrections": list(localizer.corrections) if localizer else [],
+            "counts": dict(localizer.counts) if localizer else {}, "control_ms": control, "completed": completed,
+            "wall_s": wall_s, "latency_s": rt.closed_loop.camera_latency_s()}
+
+
+def pose_errors(rows: list) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Times, laps, x-y error (m) and heading error (rad) of each control step."""
+    t = np.array([r[0] for r in rows])
+    lap = np.array([r[1] for r in rows])
+    est, truth = np.array([r[2] for r in rows]), np.array([r[3] for r in rows])
+    xy = np.linalg.norm(est[:, :2] - truth[:, :2], axis=1)
+    yaw = np.array([wrap(a) for a in est[:, 2] - truth[:, 2]])
+    return t, lap, xy, yaw
+
+
+def rpe_per_10m(rows: list) -> float:
+    """Median growth of the x-y error over 10 m driven (truth path), per 10 m."""
+    truth = np.array([r[3][:2] for r in rows])
+    err = np.array([r[2][:2] - r[3][:2] for r in rows])
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(truth, axis=0), axis=1))])
+    growth = []
+    for i in range(len(s)):
+        j = int(np.searchsorted(s, s[i] + 10.0))
+        if j >= len(s):
+            break
+        growth.append(float(np.linalg.norm(err[j] - err[i])))
+    return float(np.median(growth)) if growth else math.nan
+
+
+def ate_figures(result: dict, laps: int, suffix: str = "") -> dict[str, float]:
+    _, lap, xy, yaw = pose_errors(result["rows"])
+    heading_deg = float(np.degrees(np.sqrt(np.mean(yaw**2))))
+    f = {f"ate_rmse_m{suffix}": float(np.sqrt(np.mean(xy**2))), f"ate_max_m{suffix}": float(xy.max()),
+         f"final_error_m{suffix}": float(xy[-1]), f"heading_rmse_deg{suffix}": heading_deg,
+         f"rpe_per_10m{suffix}": rpe_per_10m(result["rows"])}
+    for k in range(laps):
+        sel = lap == k
+        f[f"ate_rmse_lap{k + 1}_m{suffix}"] = float(np.sqrt(np.mean(xy[sel] ** 2))) if sel.any() else math.nan
+    f[f"completed{suffix}"] = float(result["completed"])
+    return f
+
+
+def false_corrections_pct(result: dict) -> float:
+    """Accepted corrections whose corrected pose is > 5 cm or 1° from the truth at the frame's exposure."""
+    rows = result["rows"]
+    t = np.array([r[0] for r in rows])
+    truth = np.array([r[3] for r in rows])
+    accepted = [c for c in result["corrections"] if c.verdict == Verdict.ACCEPTED and c.pose is not None]
+    if not accepted:
+        return math.nan
+    bad = 0
+    for c in accepted:
+        te = c.t - result["latency_s"]
+        true = np.array([np.interp(te, t, truth[:, i]) for i in range(2)])
+        yaw = truth[int(np.clip(np.searchsorted(t, te), 0, len(t) - 1)), 2]
+        if np.linalg.norm(c.pose[:2] - true) > FALSE_M or abs(math.degrees(wrap(c.pose[2] - yaw))) > FALSE_DEG:
+            bad += 1
+    return 100.0 * bad / len(accepted)
+
+
+def registration_figures(result: dict) -> dict[str, float]:
+    cs = result["corrections"]
+    reg = [c.registration_ms for c in cs if math.isfinite(c.registration_ms)]
+    ref = [c.reference_ms for c in cs if c.reference_ms > 0]
+    counts = result["counts"]
+    return {"registration_ms_p50": percentile(reg, 50), "registration_ms_p95": percentile(reg, 95),
+            "reference_ms_p50": percentile(ref, 50),
+            "accepted": float(counts.get(Verdict.ACCEPTED.value, 0)),
+            "rejected": float(sum(v for k, v in counts.items() if k not in (Verdict.ACCEPTED.value, DEGENERATE))),
+            "failures": float(sum(counts.get(v.value, 0) for v in FAILURES)),
+            "no_reference": float(counts.get(Verdict.NO_REFERENCE.value, 0)),
+            "degenerate": float(counts.get(DEGENERATE, 0) + counts.get(Verdict.DEGENERATE.value, 0))}
+
+
+def main(argv: list[str] | None = None) -> dict[str, float]:
+    args = bench_args("Localization: the base pose error over the aisle laps, with and without", argv)
+    quiet_logs()
+    seeds, laps = ((0,), 1) if args.quick else ((0, 1, 2), 3)
+    figures: dict[str, float] = {}
+    on = [run(s, laps, True) for s in seeds]
+    off = [run(s, laps, False) for s in seeds]
+    merged_on = {"rows": [r for x in on for r in x["rows"]], "completed": sum(x["completed"] for x in on)}
+    merged_off = {"rows": [r for x in off for r in x["rows"]], "completed": sum(x["completed"] for x in off)}
+    figures.update(ate_figures(merged_on, laps))
+    figures.update(ate_figures(merged_off, laps, "_odom"))
+    figures["final_error_m"] = float(np.mean([ate_figures(x, laps)["final_error_m"] for x in on]))
+    figures["final_error_m_odom"] = float(np.mean([ate_figures(x, laps)["final_error_m"] for x in off]))
+    all_on = {"corrections": [c for x in on for c in x["corrections"]],
+              "counts": {k: sum(x["counts"].get(k, 0) for x in on) for x in on for k in x["counts"]}}
+    figures.update(registration_figures(all_on))
+    figures["control_ms_median_on"] = percentile([c for x in on for c in x["control_ms"]], 50)
+    figures["control_ms_median_off"] = percentile([c for x in off for c in x["control_ms"]], 50)
+    figures["wall_s_on"] = float(sum(x["wall_s"] for x in on))
+    figures["wall_s_off"] = float(sum(x["wall_s"] for x in off))
+    if not args.quick:
+        worst = 0.0
+        figures["false_corrections_pct_0_0"] = float(np.nanmean([false_corrections_pct(x) for x in on]))
+        for share, dist in MOVES[1:]:
+            runs = [run(s, laps, True, share, dist) for s in seeds]
+            pct = float(np.nanmean([false_corrections_pct(x) for x in runs]))
+            key = f"false_corrections_pct_{int(share * 100)}_{int(round(dist * 100))}"
+            figures[key] = pct
+            figures[key.replace("false_corrections_pct", "corrections")] = float(
+                sum(len([c for c in x["corrections"] if c.verdict == Verdict.ACCEPTED]) for x in runs))
+            figures[key.replace("false_corrections_pct", "ate_rmse_m")] = ate_figures(
+                {"rows": [r for x in runs for r in x["rows"]], "completed": 0}, laps)["ate_rmse_m"]
+            worst = max(worst, pct)
+        figures["false_corrections_pct"] = max(worst, figures["false_corrections_pct_0_0"])
+    units = {k: ("m" if k.endswith("_m") or "_m_" in k or k.startswith("ate") or k.startswith("final") else
+                 "ms" if "_ms" in k else "deg" if "deg" in k else "%" if "pct" in k else "s" if "wall_s" in k else "")
+             for k in figures}
+    targets = {"ate_rmse_m": "<= 0.05", "ate_max_m": "<= 0.15", "registration_ms_p95": "<= 50",
+               "false_corrections_pct": "<= 1", "ate_rmse_lap3_m": "<= 1.2 x lap1"}
+    write_result(NAME, figures, units, targets, quick=args.quick)
+    return figures
+
+
+if __name__ == "__main__":
+    main()

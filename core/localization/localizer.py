@@ -1,0 +1,226 @@
+"""`Localizer`: the base pose estimate, T_world←odom, from odometry and gated registrations of depth frames
+against the map's trusted surfaces (docs/method.md, "State estimation").
+
+One registration (`correct`): the frame (posed in the world by the current estimate, at its exposure) is
+thinned and aligned by GICP to the floor and the trusted surfaces near the base, within a radius tied to
+the current uncertainty. Objects whose points sit off their reference surface after alignment leave the
+reference (the alignment runs again without them) and are handed to the map as change evidence. The result
+passes the gates (`gates.py`), its unconstrained directions are masked (`degeneracy.py`), and the EKF update
+(`pose_filter.py`) becomes due at the frame's stamp plus the modelled processing time (`apply_due`), so
+lockstep runs stay deterministic. Until enough trusted surface is in view, odometry alone is in charge.
+
+Thread use: `correct` is the slow part and touches only the filter's covariance and the pending queue under
+`lock`; `predict`, `apply_due` and `world_pose` are cheap (a control thread may call them; issue 28 runs
+`correct` on a thread of its own in live mode).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections import Counter, deque
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from core.localization import degeneracy, gates, registration, scan, se2
+from core.localization.gates import Verdict
+from core.localization.pose_filter import PoseFilter
+from core.localization.reference import FLOOR_ID, Reference, build
+from core.params import LocalizationParams
+from core.types import DepthFrame, LocalizationStatus, PoseEstimate, ReferenceSurface
+
+DEGENERATE = "degenerate"
+"""`Localizer.counts` key: accepted corrections with at least one direction masked."""
+
+
+@dataclass(frozen=True)
+class Correction:
+    """What one registration did: its verdict, the world-frame correction Δ (x, y, yaw; zero unless
+    accepted), the directions it constrained, its NIS, inlier share, times and the objects that disagreed."""
+
+    t: float
+    verdict: Verdict
+    delta: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    dof: int = 0
+    nis: float = math.nan
+    inlier_share: float = math.nan
+    registration_ms: float = math.nan
+    reference_ms: float = 0.0
+    disagreeing: tuple[int, ...] = ()
+    apply_t: float = math.nan
+    pose: np.ndarray | None = None
+    """The base's world pose at the frame's exposure after the correction (accepted ones only)."""
+
+
+class Localizer:
+    """Odometry prediction, gated scan-to-map corrections, and the estimate T_world←odom."""
+
+    def __init__(self, params: LocalizationParams | None = None) -> None:
+        self.params = p = params or LocalizationParams()
+        self.filter = PoseFilter(p.initial_sigma_m, p.initial_sigma_rad)
+        self.lock = threading.Lock()
+        self.counts: Counter[str] = Counter()
+        self.corrections: deque[Correction] = deque(maxlen=100_000)
+        self.status = LocalizationStatus.ODOMETRY
+        self._pending: deque[tuple[float, np.ndarray]] = deque()
+        self._odom: np.ndarray | None = None
+        self._last_registration_t = -math.inf
+        self._excluded: dict[int, float] = {}
+        self._evidence: list[int] = []
+        self._target: tuple[tuple, Reference, registration.Target] | None = None
+
+    # --- cheap: every tick ----------------------------------------------------------------------------
+
+    @property
+    def world_from_odom(self) -> np.ndarray:
+        """The estimate (x, y, yaw): world pose = T_world←odom ∘ odometry pose."""
+        return self.filter.T_world_odom.copy()
+
+    def predict(self, odom_pose: np.ndarray) -> None:
+        """Grow the covariance by the odometry's motion since the last call."""
+        odom_pose = np.asarray(odom_pose, float)[:3]
+        with self.lock:
+            if self._odom is not None:
+                p = self.params
+                self.filter.predict(self._odom, odom_pose, p.drift_m_per_sqrt_m, p.drift_rad_per_sqrt_rad)
+            self._odom = odom_pose.copy()
+
+    def apply_due(self, t: float) -> bool:
+        """Apply the corrections due by robot time t; whether the estimate changed."""
+        changed = False
+        with self.lock:
+            while self._pending and self._pending[0][0] <= t + 1e-9:
+                self.filter.apply(self._pending.popleft()[1])
+                changed = True
+        return changed
+
+    def estimate(self, t: float, odom_pose: np.ndarray) -> PoseEstimate:
+        with self.lock:
+            return PoseEstimate(t, self.filter.world_pose(odom_pose), self.filter.P.copy(), self.status)
+
+    def wants(self, frame: DepthFrame) -> bool:
+        """Whether `frame` is one to register (its camera, and due at `rate_hz`)."""
+        p = self.params
+        return frame.camera == p.camera and frame.t >= self._last_registration_t + 1.0 / p.rate_hz - 1e-9
+
+    def take_change_evidence(self) -> tuple[int, ...]:
+        """Objects found disagreeing since the last call (for the map's consistency update)."""
+        with self.lock:
+            ids, self._evidence = tuple(self._evidence), []
+        return ids
+
+    # --- slow: one registration -----------------------------------------------------------------------
+
+    def correct(self, frame: DepthFrame, base_pose: np.ndarray, surface: ReferenceSurface | None) -> Correction:
+        """Register `frame` (posed in the world by the current estimate, at its exposure; the base was at
+        `base_pose` then) against the floor and `surface`; a correction that passes the gates becomes due
+        at frame.t + processing_s."""
+        p = self.params
+        self._last_registration_t = frame.t
+        self._excluded = {i: until for i, until in self._excluded.items() if until > frame.t}
+        ref, target, ref_ms = self._prepared(surface, np.asarray(base_pose[:2], float))
+        trusted = ref.object_ids != FLOOR_ID
+        if np.sum(scan.in_view(ref.points[trusted], frame, p.max_range_m)) < p.min_trusted_points:
+            return self._record(Correction(frame.t, Verdict.NO_REFERENCE, reference_ms=ref_ms))
+        source, n = registration.thin(scan.camera_points(frame, p.stride_px, p.max_range_m), p.source_voxel_m)
+        if n < p.min_source_points:
+            return self._record(Correction(frame.t, Verdict.TOO_FEW_POINTS, reference_ms=ref_ms))
+        with self.lock:
+            radius = float(np.clip(p.radius_sigmas * self.filter.sigma_xy_m(p.max_range_m / 2) + p.radius_margin_m,
+                                   p.radius_min_m, p.radius_max_m))
+        result = registration.register(target, source, frame.T_world_camera, radius, p.max_iterations)
+        ms = result.ms
+        disagreeing = self._disagreeing(ref, target, source, result)
+        if disagreeing is None:
+            return self._record(Correction(frame.t, Verdict.INCONSISTENT, registration_ms=ms, reference_ms=ref_ms))
+        if disagreeing:
+            for i in disagreeing:
+                self._excluded[i] = frame.t + p.exclusion_s
+            with self.lock:
+                self._evidence.extend(disagreeing)
+            ref, target, more_ms = self._prepared(surface, np.asarray(base_pose[:2], float))
+            ref_ms += more_ms
+            result = registration.register(target, source, frame.T_world_camera, radius, p.max_iterations)
+            ms += result.ms
+        pts = np.asarray(source.points())[:, :3]
+        return self._record(self._judge(frame, np.asarray(base_pose, float), result, pts, ms, ref_ms, disagreeing))
+
+    def _judge(self, frame: DepthFrame, base_pose: np.ndarray, result: registration.Result, source_points: np.ndarray,
+               ms: float, ref_ms: float, disagreeing: tuple[int, ...]) -> Correction:
+        p = self.params
+        base = Correction(frame.t, Verdict.ACCEPTED, registration_ms=ms, reference_ms=ref_ms, disagreeing=disagreeing,
+                          inlier_share=result.inliers / max(result.source_points, 1))
+        failure = gates.registration_verdict(result.converged, result.inliers, result.source_points, p)
+        if failure is not None:
+            return replace(base, verdict=failure)
+        lever = _rms_lever(result, source_points, base_pose[:2])
+        dirs = degeneracy.directions(result.H, result.T_world_camera, base_pose[:2], result.inliers, lever,
+                                     p.degenerate_information)
+        if dirs.dof == 0:
+            return replace(base, verdict=Verdict.DEGENERATE)
+        delta_3d = result.T_world_camera @ np.linalg.inv(frame.T_world_camera)
+        measured = se2.compose(se2.from_matrix(delta_3d), base_pose)
+        with self.lock:
+            update = self.filter.update(base_pose, measured, dirs, p.sigma_xy_m, p.sigma_yaw_rad,
+                                        5.0 * p.degenerate_information)
+            if not gates.chi2_passes(update.nis, update.dof, p):
+                return replace(base, verdict=Verdict.CHI2, dof=update.dof, nis=update.nis)
+            self.filter.P = update.P
+            apply_t = frame.t + p.processing_s
+            self._pending.append((apply_t, update.delta))
+            self.status = LocalizationStatus.LOCALIZED
+        if dirs.degenerate:
+            self.counts[DEGENERATE] += 1
+        return replace(base, delta=update.delta, dof=update.dof, nis=update.nis, apply_t=apply_t,
+                       pose=se2.compose(update.delta, base_pose))
+
+    def _disagreeing(self, ref: Reference, target: registration.Target, source, result: registration.Result
+                     ) -> tuple[int, ...] | None:
+        """Objects whose frame points sit farther than `disagreement_m` (median) from the reference after
+        alignment; None when most objects judged disagree (then the pose, not the objects, is in doubt)."""
+        p = self.params
+        pts = np.asarray(source.points())[:, :3]
+        T = result.T_world_camera
+        idx, d = target.nearest(pts @ T[:3, :3].T + T[:3, 3])
+        ids = ref.object_ids[np.clip(idx, 0, len(ref.object_ids) - 1)]
+        near = (idx >= 0) & (d < p.radius_max_m) & (ids != FLOOR_ID)
+        judged, off = 0, []
+        for i in np.unique(ids[near]):
+            mine = near & (ids == i)
+            if np.sum(mine) < p.min_object_points or i < 0:
+                continue
+            judged += 1
+            if float(np.median(d[mine])) > p.disagreement_m:
+                off.append(int(i))
+        if off and 2 * len(off) > judged:
+            return None
+        return tuple(off)
+
+    def _prepared(self, surface: ReferenceSurface | None, centre_xy: np.ndarray
+                  ) -> tuple[Reference, registration.Target, float]:
+        """The reference and its prepared target, rebuilt only when the surface, the excluded objects or the
+        base's 1 m cell change; the ms spent rebuilding (0 when kept)."""
+        cell = tuple(np.floor(centre_xy).astype(int))
+        key = (id(surface), None if surface is None else surface.t, frozenset(self._excluded), cell)
+        if self._target is not None and self._target[0] == key:
+            return self._target[1], self._target[2], 0.0
+        p = self.params
+        ref = build(surface, np.floor(centre_xy) + 0.5, p.reference_crop_m, p.floor_step_m, self._excluded)
+        target = registration.Target(ref.points)
+        self._target = (key, ref, target)
+        return ref, target, target.ms
+
+    def _record(self, correction: Correction) -> Correction:
+        self.counts[correction.verdict.value] += 1
+        self.corrections.append(correction)
+        return correction
+
+
+def _rms_lever(result: registration.Result, points_camera: np.ndarray, base_xy: np.ndarray) -> float:
+    """RMS horizontal distance (m) of the registered points from the base: a yaw dψ moves them about this
+    far per radian, so yaw in units of lever·dψ compares with x and y (the floor gives ~0.5 per inlier along
+    every such direction)."""
+    T = result.T_world_camera
+    xy = (points_camera @ T[:3, :3].T + T[:3, 3])[:, :2] - base_xy
+    return max(float(np.sqrt(np.mean(np.sum(xy**2, axis=1)))), 0.1)

@@ -1,0 +1,107 @@
+"""Localization in the lockstep closed loop (real MuJoCo, sensor model, object map, HTMPC): the loop re-poses
+state, frames and commands with T_world←odom; a drifting odometry is pulled back, a box moved in view does not
+drag the pose and loses consistency, a floor-only view corrects nothing, failed registrations leave odometry
+in charge, counted."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from app.runtime import Runtime, RuntimeConfig
+from bench.localization import true_surface
+from core.localization.gates import Verdict
+from core.params import LocalizationParams, SensorParams, SimParams
+from core.sim.scene import Box, Scene
+from core.types import LocalizationStatus
+from tasks import BasePose, BaseSubtask, TaskSequence, Tolerance
+
+CORRIDOR = Scene(tuple(Box(f"b{i}", (x, y, 0.3)) for i, (x, y) in enumerate(
+    [(-1.0, 1.3), (0.8, 1.3), (2.6, 1.3), (-1.0, -1.3), (0.8, -1.3), (2.6, -1.3), (4.4, 0.0), (-2.8, 0.0)])),
+    name="corridor")
+"""Boxes along both sides of a corridor and at both ends: every direction of x, y, yaw seen most of the time."""
+OUT_AND_BACK = TaskSequence(subtasks=[
+    BaseSubtask(name="out", target=BasePose(x=2.8, y=0.0, yaw_deg=0.0), tolerance=Tolerance(position_m=0.15),
+                timeout_s=40.0),
+    BaseSubtask(name="back", target=BasePose(x=-0.5, y=0.0, yaw_deg=180.0), tolerance=Tolerance(position_m=0.15),
+                timeout_s=40.0)])
+DRIFTY = replace(SensorParams(), odometry_drift_m=0.06, odometry_drift_rad=0.06)
+"""Odometry six times worse than the default: a short lap drifts as three aisle laps would."""
+
+
+def _runtime(sensor: SensorParams, localization: LocalizationParams, scene: Scene = CORRIDOR,
+             sequence: TaskSequence = OUT_AND_BACK, seed: int = 3) -> Runtime:
+    config = RuntimeConfig(map_kind="object", seed=seed, sim=replace(SimParams(), sensor=sensor),
+                           localization=localization)
+    return Runtime(config, scene=scene, sequence=sequence)
+
+
+def _errors(rt: Runtime, duration_s: float) -> np.ndarray:
+    """x-y error of the loop's pose against the truth at every control step of a lockstep run."""
+    errors: list[float] = []
+
+    def track(r: Runtime) -> None:
+        truth = r.backend.true_state().q[:2]  # type: ignore[attr-defined]
+        errors.append(float(np.linalg.norm(r.state.q[:2] - truth)))
+
+    rt.run_lockstep(duration_s, on_control=track)
+    return np.array(errors)
+
+
+@pytest.mark.slow
+def test_the_localized_pose_stays_within_5_cm_where_odometry_alone_drifts_past_15_cm():
+    odometry = _errors(_runtime(DRIFTY, LocalizationParams(enabled=False)), 60.0)
+    assert odometry.max() > 0.15, f"the premise: odometry alone drifts past 15 cm (max {odometry.max():.3f} m)"
+    rt = _runtime(DRIFTY, LocalizationParams(enabled=True))
+    rt.closed_loop.reference_override = true_surface(rt)  # registration against the scene itself
+    localized = _errors(rt, 60.0)
+    loc = rt.closed_loop.localizer
+    assert loc is not None and loc.counts[Verdict.ACCEPTED.value] > 10
+    assert localized.max() < 0.05, f"max error {localized.max():.3f} m (odometry alone {odometry.max():.3f} m)"
+
+
+@pytest.mark.slow
+def test_a_box_moved_in_view_does_not_move_the_estimate_and_its_consistency_drops():
+    hold = TaskSequence(subtasks=[BaseSubtask(name="hold", target=BasePose(x=0.0, y=0.0, yaw_deg=0.0),
+                                              timeout_s=60.0)])
+    rt = _runtime(SensorParams(), LocalizationParams(enabled=True, reference_period_s=0.5), sequence=hold)
+    rt.run_lockstep(4.0, until_done=False)
+    loop, loc = rt.closed_loop, rt.closed_loop.localizer
+    assert loc is not None and loc.status == LocalizationStatus.LOCALIZED
+    before = loc.world_from_odom
+    box = rt.world.box("b1") if rt.world else None
+    assert box is not None
+    mapped = min(rt.map.snapshot().objects, key=lambda o: np.linalg.norm(o.pose[:2, 3] - box.position[:2]))
+    ev_before = mapped.consistency
+    rt.move_box("b1", (box.position[0] + 0.1, box.position[1], box.position[2]))
+    rt.run_lockstep(3.0, until_done=False)
+    after = loc.world_from_odom
+    assert np.linalg.norm(after[:2] - before[:2]) <= 0.01 and abs(after[2] - before[2]) < np.radians(0.5)
+    assert any(mapped.id in c.disagreeing for c in loc.corrections), "the moved box should disagree"
+    now = {o.id: o for o in loop.map.snapshot().objects}
+    assert mapped.id not in now or now[mapped.id].consistency < ev_before
+
+
+@pytest.mark.slow
+def test_a_floor_only_view_corrects_nothing():
+    drive = TaskSequence(subtasks=[BaseSubtask(name="out", target=BasePose(x=2.0, y=0.0), timeout_s=30.0)])
+    rt = _runtime(DRIFTY, LocalizationParams(enabled=True, min_trusted_points=0), scene=Scene(), sequence=drive)
+    rt.run_lockstep(8.0)
+    loc = rt.closed_loop.localizer
+    assert loc is not None and loc.counts[Verdict.DEGENERATE.value] >= 5
+    assert loc.counts[Verdict.ACCEPTED.value] == 0 and not np.any(loc.world_from_odom)
+    assert loc.status == LocalizationStatus.ODOMETRY
+
+
+@pytest.mark.slow
+def test_registration_failures_leave_odometry_in_charge_and_are_counted():
+    rt = _runtime(DRIFTY, LocalizationParams(enabled=True, min_source_points=10**7, min_trusted_points=0))
+    errors_with = _errors(rt, 8.0)
+    loc = rt.closed_loop.localizer
+    assert loc is not None and loc.counts[Verdict.TOO_FEW_POINTS.value] >= 10
+    assert loc.counts[Verdict.ACCEPTED.value] == 0 and not np.any(loc.world_from_odom)
+    assert loc.status == LocalizationStatus.ODOMETRY
+    errors_without = _errors(_runtime(DRIFTY, LocalizationParams(enabled=False)), 8.0)
+    np.testing.assert_allclose(errors_with, errors_without, atol=1e-9)  # the very run odometry alone makes
