@@ -4,8 +4,8 @@ the object map perceiving through the sensor model."""
 
 import pytest
 
-from app.runtime.problems import ProblemKind, summary_line
 from app.runtime import Runtime, RuntimeConfig
+from app.runtime.problems import ProblemKind, summary_line
 from app.runtime.snapshot import RunState
 from core.sim.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
