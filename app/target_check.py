@@ -57,6 +57,13 @@ def envelope_of(runtime) -> RobotEnvelope:
 def check_targets(runtime, sequence: TaskSequence, *, scene_may_change: bool = False,
                   indices: list[int] | None = None, source: str = "sequence",
                   text: str | None = None) -> list[TargetFinding]:
-    """`tasks.validation.require_valid` in the runtime's scene: raises `TargetError`, returns the warnings."""
+    """`tasks.validation.require_valid` in the runtime's scene: raises `TargetError`, returns the warnings.
+
+    In simulation the scene is known, so base goals no path reaches from where the robot stands are refused
+    too; on a real robot the map is partial (a gap not seen yet may be there), so they are not."""
+    start = None
+    if getattr(runtime, "world", None) is not None:
+        start = np.asarray(runtime.state.q[:2], float)
     return require_valid(sequence, scene_obstacles(runtime), envelope_of(runtime), scene_may_change=scene_may_change,
-                         indices=indices, source=source, text=text)
+                         indices=indices, source=source, text=text, start_xy=start,
+                         planner=getattr(runtime.config, "sequencer", None))
