@@ -293,6 +293,11 @@ class Runtime:
         """Stop the sequence; the robot comes to rest (after a fault it goes on braking within its limits)."""
         self._loop.stop()
 
+    def skip(self) -> None:
+        """Skip the active subtask (e.g. one with no path to its goal); the run goes on with the next one."""
+        if not self._loop.skip():
+            raise ValueError("no active subtask to skip: Start the sequence first")
+
     def emergency_stop(self) -> None:
         """Zero velocity at once; nothing moves until `start` or `reset`."""
         self._loop.halt(RunState.ESTOP)

@@ -1,4 +1,5 @@
-"""Run control: start, pause, step, stop, reset, speed, map and constraint kind, emergency stop."""
+"""Run control: start, pause, step, skip the active subtask, stop, reset, speed, map and constraint kind,
+emergency stop."""
 
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ class RunPanel:
         with server.gui.add_folder("Run"):
             self.estop = server.gui.add_button("EMERGENCY STOP (Esc)", color="red", icon=viser.Icon.HAND_STOP,
                                                hint="Zero velocity now; Start or Reset to go on")
-            self.buttons = server.gui.add_button_group("Control", ("Start", "Pause", "Step", "Stop", "Reset"))
+            self.buttons = server.gui.add_button_group("Control", ("Start", "Pause", "Step", "Skip", "Stop", "Reset"))
             self.speed = server.gui.add_slider("Speed (×)", min=0.1, max=4.0, step=0.1,
                                                initial_value=runtime.config.speed)
             self.map_kind = server.gui.add_dropdown("Map", MAP_KINDS, initial_value=runtime.config.map_kind)
@@ -57,7 +58,7 @@ class RunPanel:
 
     def _control(self, action: str) -> None:
         {"Start": self.runtime.start, "Pause": self.runtime.pause, "Step": self.runtime.step,
-         "Stop": self.runtime.stop, "Reset": self.runtime.reset}[action]()
+         "Skip": self.runtime.skip, "Stop": self.runtime.stop, "Reset": self.runtime.reset}[action]()
 
     def update(self, snap: Snapshot) -> None:
         self.estop.disabled = snap.run_state == RunState.ESTOP
