@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from app.object_names import object_label
 from core.params import HTMPCParams, SequencerParams
 from core.types import ObjectMapSnapshot, ObjectStatus
 from tasks.schema import TaskSequence
@@ -12,14 +13,14 @@ from tasks.validation import Obstacle, RobotEnvelope, TargetFinding, box_distanc
 
 
 def _mapped(object_map: ObjectMapSnapshot | None) -> tuple[Obstacle, ...]:
-    """Live objects of an object map as boxes (id `object_<n>`)."""
+    """Live objects of an object map as boxes (id: the object's label, '#4')."""
     if object_map is None:
         return ()
     out = []
     for obj in object_map.objects:
         if obj.status == ObjectStatus.ACTIVE:
             R = obj.pose[:3, :3]
-            out.append(Obstacle(f"object_{obj.id}", tuple(obj.pose[:3, 3]), tuple(obj.extent),
+            out.append(Obstacle(object_label(obj.id), tuple(obj.pose[:3, 3]), tuple(obj.extent),
                                 float(np.arctan2(R[1, 0], R[0, 0]))))
     return tuple(out)
 
@@ -45,6 +46,17 @@ def nearest_obstacle(xy: np.ndarray, obstacles: tuple[Obstacle, ...]) -> str | N
         return None
     d = [float(box_distance(o, np.asarray(xy, float)[:2])) for o in obstacles]
     return obstacles[int(np.argmin(d))].id
+
+
+def obstacle_name(xy: np.ndarray, snap) -> str | None:
+    """What the operator calls the obstacle nearest to xy: the mapped object's label ('#4') when the map has
+    objects, with the simulated box there in brackets ('#4 (box_b)'); else the simulated box's id."""
+    mapped = nearest_obstacle(xy, _mapped(snap.object_map))
+    boxes = tuple(Obstacle(b.id, b.position, b.size, b.yaw) for b in snap.boxes)
+    box = nearest_obstacle(xy, boxes)
+    if mapped is None:
+        return box
+    return f"{mapped} ({box})" if box is not None else mapped
 
 
 def envelope_of(runtime) -> RobotEnvelope:
