@@ -1,7 +1,7 @@
 """Command line of the studio.
 
     python -m app [serve] [options]     serve the studio (default)
-    python -m app run --headless ...    run a sequence in lockstep and write a report (JSON + plots);
+    python -m app run ...               run a sequence headless in lockstep and write a report (JSON + plots);
                                         exit 0 finished, 1 not finished, 2 bad input, 3 fault
     python -m app replay FILE           replay a recorded run in the studio
 """
@@ -24,21 +24,40 @@ if TYPE_CHECKING:
     from app.recording import Recorder
 
 EXIT_FAULT = 3
-"""`run --headless`: the run faulted (the robot braked to rest; the reason is the last line on stderr)."""
+"""`run`: the run faulted (the robot braked to rest; the reason is the last line on stderr)."""
+EXIT_CODES = """exit codes:
+  0  served and stopped with Ctrl+C (serve, replay); the sequence finished (run)
+  1  the sequence did not finish: a subtask failed or --max-duration ran out (run)
+  2  bad input: a file, a tunable or a target refused, with its line, field and nearest acceptable value
+  3  the run faulted: the robot braked to rest; the reason is the last line on stderr (run)"""
+
+
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Help that shows every default (unless the text already says it, or there is none to show: a flag, None)
+    and keeps the exit-code table's lines."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        if "default" in text or action.default is None or action.default is False or \
+                action.default == argparse.SUPPRESS or not action.option_strings:
+            return text
+        return text + " (default: %(default)s)"
 
 
 def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scene", type=Path, default=None,
                         help="scene YAML (default: the sequence's scene, else core/sim/scenes/default.yaml)")
     parser.add_argument("--sequence", type=Path, default=DEFAULT_SEQUENCE, help="task sequence YAML")
-    parser.add_argument("--map", dest="map_kind", choices=MAP_KINDS, default="object", help="map the controller uses")
+    parser.add_argument("--map", dest="map_kind", choices=MAP_KINDS, default="object",
+                        help="map the controller uses (object: POCD, voxel: the static baseline, ground_truth: the "
+                             "simulator's exact boxes)")
     parser.add_argument("--constraint", choices=CONSTRAINT_KINDS, default=None,
                         help="collision constraint kind (default: the --params file's, else cbf)")
     parser.add_argument("--params", type=Path, default=None, metavar="FILE.yaml",
                         help="tunables overriding core/params.py, by section (htmpc: {gamma: 0.5}, ...)")
     parser.add_argument("--scene-may-change", action="store_true",
                         help="accept targets too close to today's boxes with a warning (the boxes move first)")
-    parser.add_argument("--log-level", default="INFO")
+    parser.add_argument("--log-level", default="INFO", help="DEBUG, INFO, WARNING or ERROR")
     parser.add_argument("--record", type=Path, default=None,
                         help="record the run to this MCAP file (.mcap; replay with `python -m app replay FILE`)")
     parser.add_argument("--record-depth", action="store_true",
@@ -46,31 +65,39 @@ def _common(parser: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="python -m app", description="Perceptive HTMPC Studio")
+    parser = argparse.ArgumentParser(prog="python -m app", description="Perceptive HTMPC Studio",
+                                     epilog=EXIT_CODES, formatter_class=HelpFormatter)
     sub = parser.add_subparsers(dest="command")
-    serve = sub.add_parser("serve", help="serve the studio (default)")
+    serve = sub.add_parser("serve", help="serve the studio (default)", epilog=EXIT_CODES, formatter_class=HelpFormatter)
     _common(serve)
     serve.add_argument("--host", default="127.0.0.1",
                        help="address to serve on (default: this machine only; any other address, or --backend "
                             "bridge, makes the page need the access link printed at start)")
-    serve.add_argument("--port", type=int, default=8080)
-    serve.add_argument("--speed", type=float, default=1.0, help="sim seconds per wall second")
+    serve.add_argument("--port", type=int, default=8080, help="port of the studio page")
+    serve.add_argument("--speed", type=float, default=1.0, help="sim seconds per wall second (×)")
     serve.add_argument("--backend", choices=("sim", "bridge"), default="sim",
                        help="sim: embedded MuJoCo; bridge: a robot driver connected to the hardware bridge")
     serve.add_argument("--bridge-port", type=int, default=8090, help="port of the hardware bridge (--backend bridge)")
     serve.add_argument("--bridge-host", default="127.0.0.1", help="address of the hardware bridge (--backend bridge)")
-    run = sub.add_parser("run", help="run a sequence in lockstep and write a report")
+    run = sub.add_parser("run", help="run a sequence headless in lockstep and write a report", epilog=EXIT_CODES,
+                         formatter_class=HelpFormatter,
+                         description="Run a sequence headless (no browser) in simulated time, as fast as the machine "
+                                     "allows (deterministic), and write report.json, path.png and timeseries.png.")
     _common(run)
-    run.add_argument("--headless", action="store_true", required=True, help="no browser: lockstep, as fast as possible")
-    run.add_argument("--max-duration", type=float, default=300.0, help="sim seconds at most")
-    run.add_argument("--out", type=Path, default=None, help="report folder (default runs/<time>)")
-    run.add_argument("--perception-delay", type=float, default=0.0)
-    run.add_argument("--actuation-delay", type=float, default=0.0)
-    replay = sub.add_parser("replay", help="replay a recorded run in the studio")
-    replay.add_argument("file", type=Path)
-    replay.add_argument("--host", default="127.0.0.1")
-    replay.add_argument("--port", type=int, default=8080)
-    replay.add_argument("--log-level", default="INFO")
+    run.add_argument("--headless", action="store_true",
+                     help="accepted for older scripts: `run` is always headless")
+    run.add_argument("--max-duration", type=float, default=300.0, metavar="S", help="sim time at most (s)")
+    run.add_argument("--out", type=Path, default=None, help="report folder (default: runs/<date-time>)")
+    run.add_argument("--perception-delay", type=float, default=0.0, metavar="S",
+                     help="modelled delay (s) from a depth frame to the map using it")
+    run.add_argument("--actuation-delay", type=float, default=0.0, metavar="S",
+                     help="modelled delay (s) from a plan to the robot acting on it")
+    replay = sub.add_parser("replay", help="replay a recorded run in the studio", epilog=EXIT_CODES,
+                            formatter_class=HelpFormatter)
+    replay.add_argument("file", type=Path, help="a recording (.mcap) written with --record")
+    replay.add_argument("--host", default="127.0.0.1", help="address to serve on")
+    replay.add_argument("--port", type=int, default=8080, help="port of the studio page")
+    replay.add_argument("--log-level", default="INFO", help="DEBUG, INFO, WARNING or ERROR")
     return parser
 
 
@@ -177,6 +204,8 @@ def run_headless(args) -> int:
         task = progress.add_task("lockstep run", total=args.max_duration)
         runtime.run_lockstep(args.max_duration, publish_every=1 if recorder else 0,
                              on_control=lambda rt: progress.update(task, completed=rt.time))
+        # the run is over (finished early, failed or out of time): the bar says so, full
+        progress.update(task, completed=args.max_duration, description=f"lockstep run: {runtime.run_state.value}")
     if recorder is not None:
         recorder.close()
         print(f"recording written to {args.record} ({recorder.count} snapshots)")

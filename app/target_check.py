@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from app.object_label import object_label
 from core.params import HTMPCParams, SequencerParams
 from core.types import ObjectMapSnapshot, ObjectStatus
 from tasks.schema import TaskSequence
@@ -12,14 +13,14 @@ from tasks.validation import Obstacle, RobotEnvelope, TargetFinding, box_distanc
 
 
 def _mapped(object_map: ObjectMapSnapshot | None) -> tuple[Obstacle, ...]:
-    """Live objects of an object map as boxes (id `object_<n>`)."""
+    """Live objects of an object map as boxes (id: the object's label, '#4')."""
     if object_map is None:
         return ()
     out = []
     for obj in object_map.objects:
         if obj.status == ObjectStatus.ACTIVE:
             R = obj.pose[:3, :3]
-            out.append(Obstacle(f"object_{obj.id}", tuple(obj.pose[:3, 3]), tuple(obj.extent),
+            out.append(Obstacle(object_label(obj.id), tuple(obj.pose[:3, 3]), tuple(obj.extent),
                                 float(np.arctan2(R[1, 0], R[0, 0]))))
     return tuple(out)
 
@@ -47,6 +48,17 @@ def nearest_obstacle(xy: np.ndarray, obstacles: tuple[Obstacle, ...]) -> str | N
     return obstacles[int(np.argmin(d))].id
 
 
+def obstacle_name(xy: np.ndarray, snap) -> str | None:
+    """What the operator calls the obstacle nearest to xy: the mapped object's label ('#4') when the map has
+    objects, with the simulated box there in brackets ('#4 (box_b)'); else the simulated box's id."""
+    mapped = nearest_obstacle(xy, _mapped(snap.object_map))
+    boxes = tuple(Obstacle(b.id, b.position, b.size, b.yaw) for b in snap.boxes)
+    box = nearest_obstacle(xy, boxes)
+    if mapped is None:
+        return box
+    return f"{mapped} ({box})" if box is not None else mapped
+
+
 def envelope_of(runtime) -> RobotEnvelope:
     """The robot's envelope with the delta_safe the runtime's controller keeps."""
     htmpc = getattr(runtime.config, "htmpc", None) or HTMPCParams()
@@ -57,6 +69,13 @@ def envelope_of(runtime) -> RobotEnvelope:
 def check_targets(runtime, sequence: TaskSequence, *, scene_may_change: bool = False,
                   indices: list[int] | None = None, source: str = "sequence",
                   text: str | None = None) -> list[TargetFinding]:
-    """`tasks.validation.require_valid` in the runtime's scene: raises `TargetError`, returns the warnings."""
+    """`tasks.validation.require_valid` in the runtime's scene: raises `TargetError`, returns the warnings.
+
+    In simulation the scene is known, so base goals no path reaches from where the robot stands are refused
+    too; on a real robot the map is partial (a gap not seen yet may be there), so they are not."""
+    start = None
+    if getattr(runtime, "world", None) is not None:
+        start = np.asarray(runtime.state.q[:2], float)
     return require_valid(sequence, scene_obstacles(runtime), envelope_of(runtime), scene_may_change=scene_may_change,
-                         indices=indices, source=source, text=text)
+                         indices=indices, source=source, text=text, start_xy=start,
+                         planner=getattr(runtime.config, "sequencer", None))

@@ -413,6 +413,10 @@ class SequencerParams:
     plan's nearest point to it); re-plans then start from the next one."""
     goal_slowdown_m: float = 0.8
     """Within this distance of the final goal the reference stops advancing past it."""
+    stall_s: float = 10.0
+    """A base subtask whose error to its goal has not fallen by `stall_progress_m` for this long (s, subtask
+    time) says "blocked" with the nearest obstacle (the run goes on until its timeout or a Skip)."""
+    stall_progress_m: float = 0.1
 
 
 @dataclass(frozen=True)

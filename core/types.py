@@ -103,6 +103,8 @@ class MappedObject:
     posterior: Posterior
     status: ObjectStatus = ObjectStatus.ACTIVE
     observations: int = 0
+    last_seen_t: float = float("nan")
+    """Time (s) of the newest frame that observed the object (matched it or created it)."""
 
     @property
     def consistency(self) -> float:

@@ -65,7 +65,7 @@ def astar(grid: OccupancyGrid, start: tuple[int, int], goal: tuple[int, int]) ->
                 g[nxt] = new
                 parent[nxt] = cur
                 heapq.heappush(frontier, (new + h(nxt), new, nxt))
-    raise NoPathError("no collision-free base path to the goal on the current map")
+    raise NoPathError("no path to the goal on the current map")
 
 
 def shortcut(grid: OccupancyGrid, points: np.ndarray) -> np.ndarray:
@@ -105,7 +105,7 @@ def _reachable_goal(grid: OccupancyGrid, goal: np.ndarray, last: bool, snap_m: f
         return None
     free = grid.centre(_nearest_free(grid, grid.cell(goal)))
     if np.linalg.norm(free - goal) > snap_m:
-        raise NoPathError(f"goal {where} is too close to an obstacle for the base")
+        raise NoPathError(f"no path to the goal {where}: it is too close to an obstacle for the base")
     notes.append(f"goal {where} is too close to an obstacle: going to ({free[0]:.2f}, {free[1]:.2f})")
     return free
 
@@ -125,7 +125,11 @@ def plan_path(grid: OccupancyGrid, start_xy: np.ndarray, goals_xy: list[np.ndarr
         s_cell = grid.cell(here)
         if grid.blocked[s_cell]:
             s_cell = _nearest_free(grid, s_cell)
-        cells = astar(grid, s_cell, g_cell)
+        try:
+            cells = astar(grid, s_cell, g_cell)
+        except NoPathError:
+            what = "the goal" if i == len(goals_xy) - 1 else f"waypoint {i + 1}"
+            raise NoPathError(f"no path to {what} ({goal[0]:.2f}, {goal[1]:.2f}) on the current map") from None
         start = here if grid.is_free(here) else grid.centre(cells[0])
         # the ends are the start and the goal themselves, also when both lie in one cell
         pts = np.array([start, *(grid.centre(c) for c in cells[1:-1]), goal])

@@ -37,6 +37,8 @@ class Outcome(StrEnum):
     ACTIVE = "active"
     DONE = "done"
     FAILED = "failed"
+    SKIPPED = "skipped"
+    """The operator skipped it (e.g. after "no path to the goal"); the sequence goes on with the next one."""
 
 
 @dataclass(frozen=True)
@@ -49,6 +51,16 @@ class GoalShift:
     @property
     def distance_m(self) -> float:
         return math.hypot(self.driven[0] - self.original[0], self.driven[1] - self.original[1])
+
+
+@dataclass(frozen=True)
+class Blocked:
+    """The base made no progress toward its goal for `for_s` (s); the nearest occupied point of the map is
+    `obstacle_xy`, `obstacle_m` from the base centre (the UI names the object there)."""
+
+    for_s: float
+    obstacle_xy: tuple[float, float] | None
+    obstacle_m: float
 
 
 @dataclass(frozen=True)
@@ -67,6 +79,10 @@ class SubtaskProgress:
     timeout_s: float = float("nan")
     goal_shift: GoalShift | None = None
     """Set while the base drives to a goal the planner moved off an obstacle; completion is judged there."""
+    blocked: Blocked | None = None
+    """Set while the base makes no progress (`SequencerParams.stall_s`); cleared when it moves on."""
+    no_path: bool = False
+    """The planner found no path to the goal (or a waypoint) on the current map: the base holds."""
 
 
 def _angle_between(R_a: np.ndarray, R_b: np.ndarray) -> float:
@@ -83,6 +99,25 @@ def _goal_shift(goal: np.ndarray, path_end: np.ndarray) -> GoalShift | None:
     if float(np.hypot(*(path_end - goal))) < 1e-6:
         return None
     return GoalShift((float(goal[0]), float(goal[1])), (float(path_end[0]), float(path_end[1])))
+
+
+def plural(n: int, noun: str) -> str:
+    """'1 subtask', '2 subtasks'."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
+def nearest_obstacle_point(occupied: np.ndarray | None, xy: np.ndarray, z_range_m: tuple[float, float],
+                           ) -> tuple[tuple[float, float] | None, float]:
+    """The occupied point (between the heights `z_range_m`) nearest to xy in the plane, and its distance (m)."""
+    if occupied is None or not len(occupied):
+        return None, math.nan
+    pts = np.asarray(occupied, float).reshape(-1, 3)
+    pts = pts[(pts[:, 2] >= z_range_m[0]) & (pts[:, 2] <= z_range_m[1])]
+    if not len(pts):
+        return None, math.nan
+    d = np.hypot(pts[:, 0] - xy[0], pts[:, 1] - xy[1])
+    k = int(np.argmin(d))
+    return (float(pts[k, 0]), float(pts[k, 1])), float(d[k])
 
 
 class Sequencer:
@@ -118,6 +153,9 @@ class Sequencer:
         self._ee_waypoint = 0
         self._base_waypoint = 0
         self._paused_at: float | None = None
+        self._best_error = math.inf
+        """The base's least error to its goal so far, and when it last fell by `stall_progress_m` (s)."""
+        self._improved_t = 0.0
 
     def pause(self, t: float) -> None:
         """Stop the subtask clock at time t: paused time counts toward neither `timeout_s` nor `dwell_s`."""
@@ -134,10 +172,11 @@ class Sequencer:
             self._started_t += span
         if self._held_since is not None:
             self._held_since += span
+        self._improved_t += span
 
     @property
     def finished(self) -> bool:
-        return bool(self.progress) and all(p.outcome == Outcome.DONE for p in self.progress)
+        return bool(self.progress) and all(p.outcome in (Outcome.DONE, Outcome.SKIPPED) for p in self.progress)
 
     @property
     def failed(self) -> bool:
@@ -157,12 +196,29 @@ class Sequencer:
             p = next(p for p in self.progress if p.outcome == Outcome.FAILED)
             return f"failed: {p.name}: {p.message}"
         if self.finished:
-            return f"sequence finished ({len(self.progress)} subtasks)"
+            skipped = sum(p.outcome == Outcome.SKIPPED for p in self.progress)
+            return f"sequence finished ({plural(len(self.progress), 'subtask')}" + (
+                f", {skipped} skipped)" if skipped else ")")
         p = self.progress[self.index]
         if p.outcome == Outcome.PENDING:
-            return f"ready: {len(self.progress)} subtasks, first {p.name}"
-        return (f"{self.index + 1}/{len(self.progress)} {p.name}: {p.position_error_m:.2f} m, "
+            return f"ready: {plural(len(self.progress), 'subtask')}, first {p.name}"
+        line = (f"{self.index + 1}/{len(self.progress)} {p.name}: {p.position_error_m:.2f} m, "
                 f"{p.orientation_error_deg:.0f}° after {p.elapsed_s:.1f} s")
+        return f"{line}: {p.message}" if p.no_path or p.blocked is not None else line
+
+    def skip(self, t: float) -> bool:
+        """The operator skips the active subtask at time t: it is marked skipped and the next one begins at the
+        next update. False when nothing is active (finished, failed or empty)."""
+        if self.active is None:
+            return False
+        p = self.progress[self.index]
+        self.progress[self.index] = replace(p, outcome=Outcome.SKIPPED, message="skipped by the operator",
+                                            elapsed_s=p.elapsed_s if self._started_t is None else t - self._started_t,
+                                            blocked=None)
+        log.info("subtask %d %s skipped by the operator", self.index + 1, p.name)
+        self.index += 1
+        self._started_t = None
+        return True
 
     # --- the loop ------------------------------------------------------------------------------
 
@@ -183,16 +239,20 @@ class Sequencer:
         self._set_progress(Outcome.ACTIVE, elapsed, held, pos_err, ori_err)
         if within and held >= sub.dwell_s - 1e-9:
             self._set_progress(Outcome.DONE, elapsed, held, pos_err, ori_err, "reached")
-            log.info("subtask %d %s done after %.1f s", self.index, self.progress[self.index].name, elapsed)
+            log.info("subtask %d %s done after %.1f s", self.index + 1, self.progress[self.index].name, elapsed)
             self.index += 1
             self._started_t = None
             return self.update(state, occupied_points, t)
         if elapsed > sub.timeout_s:
-            msg = f"timed out after {sub.timeout_s:.0f} s, {pos_err:.2f} m from the goal"
+            p = self.progress[self.index]
+            why = "no path to the goal; " if p.no_path else "blocked; " if p.blocked is not None else ""
+            msg = f"timed out after {sub.timeout_s:g} s ({why}{pos_err:.2f} m from the goal)"
             self._set_progress(Outcome.FAILED, elapsed, held, pos_err, ori_err, msg)
-            log.warning("subtask %d failed: %s", self.index, msg)
+            log.warning("subtask %d failed: %s", self.index + 1, msg)
             return None
         refs = self._references(sub, state, occupied_points, t)
+        if isinstance(sub, BaseSubtask):
+            self._watch_stall(pos_err, state, occupied_points, t)
         self._switched = False
         return refs
 
@@ -213,7 +273,29 @@ class Sequencer:
             self._hold_base = state.q[:3].copy()
         self._ee_waypoint = 0
         self._base_waypoint = 0
+        self._best_error = math.inf
+        self._improved_t = t
         return t
+
+    def _watch_stall(self, pos_err: float, state: RobotState, occupied: np.ndarray | None, t: float) -> None:
+        """Blocked: the base's error to its goal has not fallen by `stall_progress_m` for `stall_s`; the message
+        names the distance to the nearest occupied point (cleared once the base makes progress again)."""
+        p = self.progress[self.index]
+        if pos_err < self._best_error - self.params.stall_progress_m:
+            self._best_error, self._improved_t = pos_err, t
+            if p.blocked is not None:
+                self.progress[self.index] = replace(p, blocked=None, message="")
+            return
+        stalled = t - self._improved_t
+        if stalled < self.params.stall_s or p.no_path:
+            return
+        xy, dist = nearest_obstacle_point(occupied, state.q[:2], self.params.obstacle_z_m)
+        blocked = Blocked(stalled, xy, dist)
+        near = "" if xy is None else f"; nearest obstacle {dist:.2f} m away at ({xy[0]:.2f}, {xy[1]:.2f})"
+        message = f"blocked: no progress for {stalled:.0f} s, {pos_err:.2f} m from the goal{near}"
+        if p.blocked is None:
+            log.warning("subtask %d %s: %s", self.index + 1, p.name, message)
+        self.progress[self.index] = replace(p, blocked=blocked, message=message)
 
     def _set_progress(self, outcome: Outcome, elapsed: float, held: float, pos: float, ori: float,
                       message: str | None = None) -> None:
@@ -274,6 +356,7 @@ class Sequencer:
         goals = [w.xy() for w in sub.path()[self._base_waypoint:]]
         notes: list[str] = []
         shift = None
+        no_path = False
         try:
             if grid is not None:
                 path = plan_path(grid, state.q[:2], goals, notes=notes)
@@ -287,15 +370,19 @@ class Sequencer:
             message = "; ".join(notes)
         except NoPathError as err:
             path = state.q[None, :2].copy()  # hold here until the map changes (a box moves away)
-            message = f"{err}: waiting"
+            message = f"{err}: holding here (Skip the subtask or Stop)"
+            no_path = True
         self.path = path
         self._s_progress = 0.0
         self._plan_t, self._grid_sig = t, sig
         p = self.progress[self.index]
-        if message != p.message or shift != p.goal_shift:
-            if shift is not None and shift != p.goal_shift:
-                log.info("subtask %d: %s", self.index, message)
-            self.progress[self.index] = replace(p, message=message, goal_shift=shift)
+        if p.blocked is not None and not no_path and not notes:
+            message = p.message  # a stall's message stays until the base moves on
+        if message != p.message or shift != p.goal_shift or no_path != p.no_path:
+            if (shift is not None and shift != p.goal_shift) or (no_path and not p.no_path):
+                log.info("subtask %d: %s", self.index + 1, message)
+            self.progress[self.index] = replace(p, message=message, goal_shift=shift, no_path=no_path,
+                                                blocked=None if no_path else p.blocked)
         return path
 
     def _pass_waypoints(self, sub: BaseSubtask, xy: np.ndarray, path: np.ndarray, s: np.ndarray) -> None:

@@ -7,6 +7,9 @@ One function, `check_sequence`, serves the studio, YAML files, the bridge API an
   cell; A* would move a goal closer than that);
 - **hand clearance**: an EE target keeps the hand's spheres (wrist 0.2 m, tool 0.15 m, rigid in the EE
   frame) delta_safe from every box, and above the floor;
+- **a path**: with the robot's start known, every base goal and waypoint is reachable from the one before
+  (from the start for the first) on the planner's grid (`tasks/reachability.py`): a goal in a closed pen of
+  boxes is refused, with the nearest reachable position;
 - **reach**: an EE target is within the arm's reach (shoulder to EE, less `reach_margin_m`) from some
   base pose that keeps the base clearance; a base-frame target within reach of the shoulder and clear of
   the robot's own base.
@@ -32,6 +35,7 @@ from core.params import SequencerParams
 from core.robot.collision_boxes import base_boxes
 from core.robot.model import RobotModel
 from core.yaml_validation import FileFormatError, line_of
+from tasks.reachability import FreeSpace
 from tasks.schema import BasePose, BaseSubtask, EEPose, EESubtask, TaskSequence
 
 HAND_SPHERES = ("wrist_3", "tool")
@@ -72,9 +76,11 @@ class Rule(StrEnum):
     REACH = "reach"
     BASE_POSE = "base_pose"
     SELF_COLLISION = "self_collision"
+    PATH = "path"
+    """No base path reaches the goal from the robot's start (boxes close it in)."""
 
 
-SCENE_RULES = frozenset({Rule.BASE_CLEARANCE, Rule.HAND_CLEARANCE, Rule.BASE_POSE})
+SCENE_RULES = frozenset({Rule.BASE_CLEARANCE, Rule.HAND_CLEARANCE, Rule.BASE_POSE, Rule.PATH})
 """Rules that depend on where the boxes are now."""
 
 
@@ -419,15 +425,49 @@ def _self_violation(R: np.ndarray | None, env: RobotEnvelope):
     return violation
 
 
+def _finding(index: int, field: str, rule: Rule, message: str, nearest, scene_may_change: bool) -> TargetFinding:
+    severity = Severity.WARNING if scene_may_change and rule in SCENE_RULES else Severity.ERROR
+    if severity == Severity.WARNING:
+        message += " (accepted: the scene may change before this subtask runs)"
+    return TargetFinding(index, field, rule, severity, message, nearest)
+
+
+def _path_findings(sequence: TaskSequence, boxes: Sequence[BoxLike], env: RobotEnvelope, start_xy: np.ndarray,
+                   planner: SequencerParams, wanted: set[int] | None, scene_may_change: bool) -> list[TargetFinding]:
+    """Base goals and waypoints that no path reaches from the one before (the first from `start_xy`)."""
+    blocking = _base_boxes(boxes, env)
+    if not blocking:
+        return []
+    space = FreeSpace.of(lambda xy: _clearance(blocking, xy)[0], env.base_clearance_m, planner.plan_bounds_m,
+                         planner.grid_cell_m)
+    out: list[TargetFinding] = []
+    here = np.asarray(start_xy, float)[:2]
+    for i, sub in enumerate(sequence.subtasks):
+        if not isinstance(sub, BaseSubtask):
+            continue
+        poses = [(f"subtasks.{i}.waypoints.{k}", "base waypoint", w) for k, w in enumerate(sub.waypoints)]
+        if sub.target is not None:
+            poses.append((f"subtasks.{i}.target", "base goal", sub.target))
+        for field, what, pose in poses:
+            xy = pose.xy()
+            if space.reachable(here, xy):
+                here = xy
+                continue  # an unreachable one is never reached: the next leg starts where the base is
+            if wanted is None or i in wanted:
+                box = blocking[int(_clearance(blocking, xy[None])[1][0])]
+                message = (f"{what} {_fmt(xy)}: no path reaches it from {_fmt(here)}; the boxes around it "
+                           f"(nearest {box.id}) close it in for the base")
+                out.append(_finding(i, field, Rule.PATH, message, _rounded(space.nearest_reachable(here, xy)),
+                                    scene_may_change))
+    return out
+
+
 def _findings_for(sub: BaseSubtask | EESubtask, index: int, boxes: Sequence[BoxLike], env: RobotEnvelope,
                   scene_may_change: bool) -> list[TargetFinding]:
     out: list[TargetFinding] = []
 
     def add(field: str, rule: Rule, message: str, nearest) -> None:
-        severity = Severity.WARNING if scene_may_change and rule in SCENE_RULES else Severity.ERROR
-        if severity == Severity.WARNING:
-            message += " (accepted: the scene may change before this subtask runs)"
-        out.append(TargetFinding(index, field, rule, severity, message, nearest))
+        out.append(_finding(index, field, rule, message, nearest, scene_may_change))
 
     poses: list[tuple[str, BasePose | EEPose]] = [(f"subtasks.{index}.waypoints.{k}", w)
                                                   for k, w in enumerate(sub.waypoints)]
@@ -458,10 +498,14 @@ def _findings_for(sub: BaseSubtask | EESubtask, index: int, boxes: Sequence[BoxL
 
 
 def check_sequence(sequence: TaskSequence, boxes: Iterable[BoxLike], envelope: RobotEnvelope, *,
-                   scene_may_change: bool = False, indices: Iterable[int] | None = None) -> list[TargetFinding]:
+                   scene_may_change: bool = False, indices: Iterable[int] | None = None,
+                   start_xy: Sequence[float] | np.ndarray | None = None,
+                   planner: SequencerParams | None = None) -> list[TargetFinding]:
     """Every broken rule of the sequence's targets (of the subtasks in `indices`, default all), in order.
 
     Errors refuse the sequence; warnings accept it (rules that depend on the boxes, when `scene_may_change`).
+    With the robot's `start_xy` (the scene is known), base goals no path reaches are refused too, on the grid
+    of `planner` (default `SequencerParams()`).
     """
     boxes = list(boxes)
     wanted = None if indices is None else set(indices)
@@ -469,15 +513,23 @@ def check_sequence(sequence: TaskSequence, boxes: Iterable[BoxLike], envelope: R
     for i, sub in enumerate(sequence.subtasks):
         if wanted is None or i in wanted:
             out += _findings_for(sub, i, boxes, envelope, scene_may_change)
+    if start_xy is not None:
+        blocked = {f.field for f in out if f.rule == Rule.BASE_CLEARANCE}
+        out += [f for f in _path_findings(sequence, boxes, envelope, np.asarray(start_xy, float),
+                                          planner or SequencerParams(), wanted, scene_may_change)
+                if f.field not in blocked]
+        out.sort(key=lambda f: f.index)
     return out
 
 
 def require_valid(sequence: TaskSequence, boxes: Iterable[BoxLike], envelope: RobotEnvelope, *,
                   scene_may_change: bool = False, indices: Iterable[int] | None = None, source: str = "sequence",
-                  text: str | None = None) -> list[TargetFinding]:
+                  text: str | None = None, start_xy: Sequence[float] | np.ndarray | None = None,
+                  planner: SequencerParams | None = None) -> list[TargetFinding]:
     """`check_sequence`, raising `TargetError` (with YAML lines when `text` is given) if any finding is an
     error; returns the warnings."""
-    findings = check_sequence(sequence, boxes, envelope, scene_may_change=scene_may_change, indices=indices)
+    findings = check_sequence(sequence, boxes, envelope, scene_may_change=scene_may_change, indices=indices,
+                              start_xy=start_xy, planner=planner)
     errors = [f for f in findings if f.severity == Severity.ERROR]
     if errors:
         raise TargetError(source, errors, text)

@@ -161,6 +161,9 @@ class ReplaySource:
     def stop(self) -> None:
         self.playing = False
 
+    def skip(self) -> None:
+        raise ValueError("a replay shows the recorded run: nothing to skip")
+
     def reset(self, scene=None) -> None:
         self.playing = False
         self.seek(self.start_time)

@@ -8,7 +8,7 @@ snapshot's index in the recording) and its log time (wall clock, ns):
 | `/robot/state` | `htmpc.RobotState` (t, q[9], v[9]) | every snapshot |
 | `/robot/command` | `htmpc.JointVelocityCommand` (t, qdot[9], the last command sent) | when known |
 | `/plan` | `htmpc.Plan` (predicted q, v, u, Cartesian paths, task errors, solve times, status) | when a plan exists |
-| `/map/objects` | `htmpc.ObjectMap` (pose, extent, E[v] = consistency, posterior, status) | object map only |
+| `/map/objects` | `htmpc.ObjectMap` (`#id` label, pose, extent, E[v], posterior, status, last seen) | object map only |
 | `/map/points`, `/camera/clouds` | `htmpc.PointCloud` | every `points_every`-th snapshot |
 | `/map/edf_slice` | `htmpc.EDFSlice` | when the controller has an EDF |
 | `/scene/boxes` | `htmpc.Boxes` (ground truth, simulation only) | every snapshot |
@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from app.object_label import object_label
 from app.runtime.problems import ProblemCount, ProblemKind
 from app.runtime.snapshot import EDFSlice, RunState, Snapshot
 from core.sim.scene import Box
@@ -43,7 +44,7 @@ from core.types import (
     Posterior,
     RobotState,
 )
-from tasks.sequencer import GoalShift, Outcome, SubtaskProgress
+from tasks.sequencer import Blocked, GoalShift, Outcome, SubtaskProgress
 
 FORMAT = "perceptive-htmpc-recording/2"
 """Written to the MCAP header's profile-independent metadata record `recording`."""
@@ -81,7 +82,7 @@ SCHEMAS: dict[str, dict] = {
             "id": _INT, "pose": _arr(2), "extent": _arr(), "status": _STR, "consistency": _NUM,
             "posterior": _obj("N(l | mu, sigma^2) Beta(v | alpha, beta)",
                               {"mu": _NUM, "sigma": _NUM, "alpha": _NUM, "beta": _NUM}),
-            "observations": _INT})}}),
+            "observations": _INT, "label": _STR, "last_seen_t": _NUM})}}),
     "htmpc.PointCloud": _obj("points in the world frame (m)", {"t": _NUM, "points": _arr(2)}),
     "htmpc.EDFSlice": _obj("EDF slice at height z_m: values[i][j] at origin + voxel (i, j)",
                            {"origin": _arr(), "voxel": _NUM, "z_m": _NUM, "values": _arr(2)}),
@@ -182,7 +183,8 @@ def snapshot_messages(snap: Snapshot, with_points: bool) -> list[tuple[str, dict
         m = snap.object_map
         out.append(("/map/objects", {"t": m.t, "removed_ids": list(m.removed_ids), "objects": [
             {"id": o.id, "pose": _list(o.pose), "extent": _list(o.extent), "status": o.status.value,
-             "consistency": _num(o.consistency), "posterior": _record(o.posterior), "observations": o.observations}
+             "consistency": _num(o.consistency), "posterior": _record(o.posterior), "observations": o.observations,
+             "label": object_label(o.id), "last_seen_t": _num(o.last_seen_t)}
             for o in m.objects]}))
     if with_points and snap.map_points is not None:
         out.append(("/map/points", {"t": t, "points": _list(snap.map_points, 3)}))
@@ -233,7 +235,8 @@ def _object_map(m: dict) -> ObjectMapSnapshot:
     return ObjectMapSnapshot(t=m["t"], removed_ids=tuple(m["removed_ids"]), objects=tuple(
         MappedObject(id=o["id"], pose=_np(o["pose"]), extent=_np(o["extent"]), points=np.zeros((0, 3)),
                      posterior=Posterior(**{k: _nan(v) for k, v in o["posterior"].items()}),
-                     status=ObjectStatus(o["status"]), observations=o["observations"]) for o in m["objects"]))
+                     status=ObjectStatus(o["status"]), observations=o["observations"],
+                     last_seen_t=_nan(o.get("last_seen_t"))) for o in m["objects"]))
 
 
 def _progress(p: dict) -> SubtaskProgress:
@@ -245,6 +248,10 @@ def _progress(p: dict) -> SubtaskProgress:
     if values.get("goal_shift") is not None:
         shift = values["goal_shift"]
         values["goal_shift"] = GoalShift(tuple(shift["original"]), tuple(shift["driven"]))
+    if values.get("blocked") is not None:
+        b = values["blocked"]
+        values["blocked"] = Blocked(b["for_s"], None if b["obstacle_xy"] is None else tuple(b["obstacle_xy"]),
+                                    _nan(b["obstacle_m"]))
     return SubtaskProgress(**values)
 
 

@@ -278,6 +278,15 @@ class ClosedLoop:
         if self.fault_reason is None:
             self.halt(RunState.IDLE)
 
+    def skip(self) -> bool:
+        """Skip the active subtask (running or paused): the sequence goes on with the next one; False when no
+        subtask is active."""
+        with self.step_lock, self.lock:
+            if self.run_state not in (RunState.RUNNING, RunState.PAUSED) or not self.sequencer.skip(self.state.t):
+                return False
+            self.view = SequenceView.of(self.sequencer)
+            return True
+
     def set_sequence(self, sequence: TaskSequence) -> None:
         """A new authored sequence: shown at once unless a run is under way (it keeps its copy)."""
         with self.step_lock, self.lock:

@@ -28,10 +28,18 @@ class ProblemKind(StrEnum):
     def label(self) -> str:
         return _LABELS[self]
 
+    def counted(self, n: int) -> str:
+        """'1 slow solve', '2 slow solves'."""
+        return f"{n} {_SINGULAR[self] if n == 1 else _LABELS[self]}"
+
 
 _LABELS = {ProblemKind.QP_FAILURE: "QP failures", ProblemKind.FALLBACK: "fallback plans",
            ProblemKind.SLOW_SOLVE: "slow solves", ProblemKind.FAULT: "faults", ProblemKind.STALE_STATE: "stale state",
            ProblemKind.WATCHDOG: "watchdog events", ProblemKind.UNKNOWN_SPACE: "unknown space ahead"}
+_SINGULAR = {ProblemKind.QP_FAILURE: "QP failure", ProblemKind.FALLBACK: "fallback plan",
+             ProblemKind.SLOW_SOLVE: "slow solve", ProblemKind.FAULT: "fault", ProblemKind.STALE_STATE: "stale state",
+             ProblemKind.WATCHDOG: "watchdog event",
+             ProblemKind.UNKNOWN_SPACE: "unknown space ahead"}
 
 NORMAL_STOPS = ("no task",)
 """Braking plans that are not problems: nothing to do (the sequence ended or has not started)."""
@@ -76,7 +84,9 @@ class ProblemLog:
         if "solve took" in message:
             self.record(ProblemKind.SLOW_SOLVE, t, message)
         elif solve_ms is not None and solve_ms > self.slow_solve_ms:
-            self.record(ProblemKind.SLOW_SOLVE, t, f"solve took {solve_ms:.0f} ms (> {self.slow_solve_ms:.0f} ms)")
+            digits = 0 if round(solve_ms) > round(self.slow_solve_ms) else 1  # never "100 ms (> 100 ms)"
+            self.record(ProblemKind.SLOW_SOLVE, t,
+                        f"solve took {solve_ms:.{digits}f} ms (> {self.slow_solve_ms:.0f} ms)")
 
     def counts(self) -> tuple[ProblemCount, ...]:
         """Every kind seen so far, in the order of `ProblemKind`."""
@@ -93,13 +103,16 @@ class ProblemLog:
         return sum(c.count for c in self.counts())
 
     def to_json(self) -> dict[str, dict]:
-        """{kind: {count, first_t, last_t, last_message}} for the run report."""
-        return {c.kind.value: {"count": c.count, "first_t": c.first_t, "last_t": c.last_t,
-                               "last_message": c.last_message} for c in self.counts()}
+        """{kind: {count, first_t, last_t, last_message}} for the run report: every kind, unseen ones with count 0
+        (first_t, last_t None, last_message "")."""
+        seen = {c.kind: c for c in self.counts()}
+        return {k.value: {"count": 0, "first_t": None, "last_t": None, "last_message": ""} if k not in seen else
+                {"count": seen[k].count, "first_t": seen[k].first_t, "last_t": seen[k].last_t,
+                 "last_message": seen[k].last_message} for k in ProblemKind}
 
 
 def summary_line(counts: tuple[ProblemCount, ...]) -> str:
-    """'2 QP failures (last at 12.3 s), 1 slow solves (...)', or 'no problems'."""
+    """'2 QP failures (last at 12.3 s), 1 slow solve (...)', or 'no problems'."""
     if not counts:
         return "no problems"
-    return ", ".join(f"{c.count} {c.kind.label} (last at {c.last_t:.1f} s)" for c in counts)
+    return ", ".join(f"{c.kind.counted(c.count)} (last at {c.last_t:.1f} s)" for c in counts)

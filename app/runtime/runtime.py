@@ -250,6 +250,11 @@ class Runtime:
         `start` resumes the active subtask."""
         self._loop.stop()
 
+    def skip(self) -> None:
+        """Skip the active subtask (e.g. one with no path to its goal); the run goes on with the next one."""
+        if not self._loop.skip():
+            raise ValueError("no active subtask to skip: Start the sequence first")
+
     def emergency_stop(self) -> None:
         """Zero velocity at once; nothing moves until `start` (resumes the active subtask) or `reset`."""
         self._loop.halt(RunState.ESTOP)

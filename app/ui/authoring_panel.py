@@ -18,7 +18,7 @@ import viser.transforms as vtf
 
 from app.recording.replay import ReplaySource
 from app.runtime import Runtime
-from app.runtime.snapshot import Snapshot
+from app.runtime.snapshot import RunState, Snapshot
 from app.ui.authoring import (
     PRIORITY_CHOICES,
     SequenceHistory,
@@ -37,6 +37,7 @@ from tasks.schema import BaseSubtask, EEPose, TaskSequence
 from tasks.sequence_file import parse_sequence, sequence_to_yaml
 from tasks.validation import Severity, TargetError, TargetFinding, changed_subtasks
 
+NEXT_START = "The run goes on with the sequence it started with; this edit applies at the next Start."
 NONE: str = "(none)"
 """The dropdown entry that selects nothing."""
 
@@ -134,6 +135,8 @@ class AuthoringPanel:
         self._version = self.runtime.sequence_version
         self._refresh(seq, select)
         return warnings
+        if getattr(self.runtime, "run_state", None) in (RunState.RUNNING, RunState.PAUSED):
+            notify_all(self.server, "Applies at the next Start", NEXT_START, color="yellow")
 
     def _refresh(self, seq: TaskSequence | None = None, select: int | None = None) -> None:
         seq = seq or self.history.current

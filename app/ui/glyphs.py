@@ -9,7 +9,7 @@ RUN_STATE = {RunState.RUNNING: "▶", RunState.PAUSED: "‖", RunState.ESTOP: "�
              RunState.FAILED: "✖", RunState.IDLE: "■", RunState.FAULT: "⚠"}
 """Run state → glyph for the status line (not ⏸ or ⛔: no font here has them)."""
 OTHER_STATE = "■"
-OUTCOME = {"done": "✔", "failed": "✖", "active": "▶", "pending": "·"}
+OUTCOME = {"done": "✔", "failed": "✖", "active": "▶", "pending": "·", "skipped": "»"}
 WARNING = "⚠"
 
 ALL = frozenset("".join([*RUN_STATE.values(), OTHER_STATE, *OUTCOME.values(), WARNING]))

@@ -10,6 +10,7 @@ import numpy as np
 import trimesh
 import viser
 
+from app.object_label import object_label
 from app.runtime.snapshot import Snapshot
 from app.ui.colors import consistency_rgb, distance_rgb
 from app.ui.robot_view import wxyz
@@ -17,13 +18,49 @@ from core.params import MappingParams
 from core.robot.model import RobotModel
 from core.types import MappedObject, ObjectStatus
 
+LABEL_LIFT_M = 0.15
+"""A label floats this far above its object's top."""
+LABEL_STACK_M = 0.22
+"""Labels whose anchors lie within `LABEL_NEAR_M` of each other are stacked this far apart in height (two
+objects on one table used to print their labels over each other)."""
+LABEL_NEAR_M = 0.8
+
+
+def age_text(seconds: float) -> str:
+    """How long ago an object was last seen, coarse enough that the label changes rarely: 'seen now',
+    'seen 4 s ago', 'seen 2 min ago'."""
+    if not np.isfinite(seconds):
+        return "never seen"
+    if seconds < 1.0:
+        return "seen now"
+    return f"seen {seconds:.0f} s ago" if seconds < 60 else f"seen {seconds // 60:.0f} min ago"
+
+
+def label_text(obj: MappedObject, removed: bool, now_s: float, name: str | None = None) -> str:
+    """'#4 E[v]=0.93 · seen 4 s ago', '#5 removed · seen 12 s ago'."""
+    state = "removed" if removed else f"E[v]={obj.consistency:.2f}"
+    return f"{object_label(obj.id, name)} {state} · {age_text(now_s - obj.last_seen_t)}"
+
+
+def stacked(anchors: list[np.ndarray]) -> list[np.ndarray]:
+    """Label positions that never overprint: each anchor raised by `LABEL_STACK_M` until no label placed before it
+    is within `LABEL_NEAR_M` in the plane and `LABEL_STACK_M` in height (placed in the anchors' order)."""
+    placed: list[np.ndarray] = []
+    for anchor in anchors:
+        p = np.asarray(anchor, float).copy()
+        while any(np.hypot(*(p[:2] - q[:2])) < LABEL_NEAR_M and abs(p[2] - q[2]) < LABEL_STACK_M - 1e-9
+                  for q in placed):
+            p[2] += LABEL_STACK_M
+        placed.append(p)
+    return placed
 
 @dataclass(frozen=True)
 class DrawnObject:
-    """A mapped object as the view draws it: its centre (m, rounded to mm) and its label."""
+    """A mapped object as the view draws it: its centre (m, rounded to mm), its label and where the label is."""
 
     position: tuple[float, float, float]
     label: str
+    label_position: tuple[float, float, float]
 
 
 class MapView:
@@ -38,6 +75,8 @@ class MapView:
                      "clouds": False}
         self._objects: dict[int, tuple[tuple, viser.BoxHandle | viser.PointCloudHandle, viser.LabelHandle]] = {}
         self._last_seen: dict[int, MappedObject] = {}
+        self.names: dict[int, str] = {}
+        """Operator-given names by map id (none yet: naming mapped objects is to come), shown after '#id'."""
         self._layers: dict[str, viser.SceneNodeHandle] = {}
         sphere = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
         self._sphere_mesh = (np.asarray(sphere.vertices, np.float32), np.asarray(sphere.faces, np.uint32))
@@ -53,7 +92,7 @@ class MapView:
 
     def drawn_objects(self) -> dict[int, DrawnObject]:
         """The objects drawn now, by id (removed ones stay, grey and labelled, at their last known pose)."""
-        return {i: DrawnObject(key[0], label.text) for i, (key, _, label) in self._objects.items()}
+        return {i: DrawnObject(key[0], label.text, key[5]) for i, (key, _, label) in self._objects.items()}
 
     def _box_like(self, obj: MappedObject) -> bool:
         """Drawn as a box; objects longer than the map registers as movable boxes are drawn as their points."""
@@ -96,9 +135,12 @@ class MapView:
         seen = set()
         if snap.object_map is None or not snap.object_map.objects and not snap.object_map.removed_ids:
             self._last_seen.clear()  # a new map (reset, another map kind)
-        for obj, removed in self._objects_to_draw(snap):
+        drawn = sorted(self._objects_to_draw(snap), key=lambda d: d[0].id)
+        anchors = stacked([o.pose[:3, 3] + [0, 0, o.extent[2] / 2 + LABEL_LIFT_M] for o, _ in drawn])
+        for (obj, removed), anchor in zip(drawn, anchors, strict=True):
+            text = label_text(obj, removed, snap.state.t, self.names.get(obj.id))
             key = (tuple(np.round(obj.pose[:3, 3], 3)), tuple(np.round(obj.extent, 3)), round(obj.consistency, 2),
-                   removed)
+                   removed, text, tuple(np.round(anchor, 3)))
             seen.add(obj.id)
             old = self._objects.get(obj.id)
             if old is not None and old[0] == key:
@@ -116,9 +158,7 @@ class MapView:
                 box = self.server.scene.add_point_cloud(f"/map/objects/{obj.id}", pts,
                                                         np.tile(np.array([color], np.uint8), (len(pts), 1)),
                                                         point_size=0.04, point_shape="square")
-            text = f"#{obj.id} E[v]={obj.consistency:.2f}" + (" removed" if removed else "")
-            label = self.server.scene.add_label(f"/map/labels/{obj.id}", text,
-                                                position=obj.pose[:3, 3] + [0, 0, obj.extent[2] / 2 + 0.15])
+            label = self.server.scene.add_label(f"/map/labels/{obj.id}", text, position=anchor)
             self._objects[obj.id] = (key, box, label)
         for obj_id in [i for i in self._objects if i not in seen]:
             _, box, label = self._objects.pop(obj_id)

@@ -1,4 +1,6 @@
-"""Live monitoring plots: solve and mapping time, task error per level, clearance and E[v] per object."""
+"""Live monitoring plots: solve and mapping time, task error per level, clearance and E[v] per object, over the
+whole run: the last `WINDOW` rows at full rate, the older ones thinned to at most `OLDER_MAX` (every other one
+dropped each time they reach it), so a run stays in the monitor after it ends."""
 
 from __future__ import annotations
 
@@ -9,9 +11,13 @@ import numpy as np
 import viser
 import viser.uplot as uplot
 
-from app.runtime.snapshot import Snapshot
+from app.object_label import object_label
+from app.runtime.snapshot import RunState, Snapshot
 
-HISTORY = 300
+WINDOW = 300
+"""Rows (snapshots) kept at full rate: the last 15 s at the studio's 20 snapshots a second."""
+OLDER_MAX = 600
+"""Older rows are thinned to at most this many."""
 MAX_OBJECTS = 6
 PLOT_PERIOD_S = 0.5
 """Plots are re-sent at most twice a second: a software-rendered browser falls behind at 20 Hz."""
@@ -41,17 +47,55 @@ def _series(labels: list[str]) -> tuple[uplot.Series, ...]:
     return tuple(out)
 
 
+def _axes(y_label: str) -> tuple[uplot.Axis, uplot.Axis]:
+    """Sim time below, `y_label` (with its unit) on the left, wide enough that neither label is clipped."""
+    return (uplot.Axis(label="sim time (s)", size=40, labelSize=18),
+            uplot.Axis(label=y_label, size=60, labelSize=18))
+
+
+class RunHistory:
+    """The rows of one run: the newest `window` at full rate, older ones thinned (to ≤ `older_max`)."""
+
+    def __init__(self, window: int = WINDOW, older_max: int = OLDER_MAX) -> None:
+        self.recent: deque[tuple] = deque(maxlen=window)
+        self.older: list[tuple] = []
+        self.older_max = older_max
+
+    def append(self, row: tuple) -> None:
+        if len(self.recent) == self.recent.maxlen:
+            self.older.append(self.recent[0])
+            if len(self.older) > self.older_max:
+                self.older = self.older[::2]
+        self.recent.append(row)
+
+    def clear(self) -> None:
+        self.recent.clear()
+        self.older.clear()
+
+    def rows(self) -> list[tuple]:
+        return [*self.older, *self.recent]
+
+    def __len__(self) -> int:
+        return len(self.older) + len(self.recent)
+
+    def __getitem__(self, k: int) -> tuple:
+        return self.rows()[k]
+
+
 class MonitorPanel:
     """Four rolling plots (x axis: sim time, not wall time)."""
 
     def __init__(self, server: viser.ViserServer) -> None:
         self.server = server
-        self.rows: deque[tuple] = deque(maxlen=HISTORY)
+        self.rows = RunHistory()
+        self._last_t = -np.inf
+        self._last_state: RunState | None = None
         self.solve: viser.GuiUplotHandle | None = None
         self.errors: viser.GuiUplotHandle | None = None
         self.clearance: viser.GuiUplotHandle | None = None
         self.consistency: viser.GuiUplotHandle | None = None
         self._obj_ids: list[int] = []
+        self._legend: tuple[str, ...] = ()
         self._last_plot = 0.0
 
     def build_plots(self) -> None:
@@ -60,24 +104,45 @@ class MonitorPanel:
         scales = {"x": uplot.Scale(time=False, auto=True)}
         empty = (np.zeros(1), np.zeros(1), np.zeros(1))
         self.solve = server.gui.add_uplot(empty, _series(["solve ms", "map ms"]), title="Solve / mapping time (ms)",
-                                          scales=scales, aspect=2.0, legend=LEGEND)
-        self.errors = server.gui.add_uplot(empty, _series(["level 1", "level 2"]), title="Task error per level",
-                                           scales=scales, aspect=2.0, legend=LEGEND)
+                                          scales=scales, aspect=2.0, legend=LEGEND, axes=_axes("time (ms)"))
+        self.errors = server.gui.add_uplot(empty, _series(["level 1", "level 2"]),
+                                           title="Task error per level, ‖e‖ at the first node (m, rad)",
+                                           scales=scales, aspect=2.0, legend=LEGEND, axes=_axes("‖e‖ (m, rad)"))
         self.clearance = server.gui.add_uplot((np.zeros(1), np.zeros(1)), _series(["min distance (m)"]),
-                                              title="Robot–box distance (m)", scales=scales, aspect=2.0, legend=LEGEND)
+                                              title="Robot–box distance (m)", scales=scales, aspect=2.0, legend=LEGEND,
+                                              axes=_axes("distance (m)"))
         obj_empty = tuple(np.zeros(1) for _ in range(MAX_OBJECTS + 1))
-        self.consistency = server.gui.add_uplot(obj_empty, _series([f"obj {i}" for i in range(MAX_OBJECTS)]),
-                                                title="E[v] per object", scales=scales, aspect=2.0, legend=LEGEND)
+        self.consistency = server.gui.add_uplot(obj_empty, _series(self.object_labels()),
+                                                title="E[v] per object (map id)", scales=scales, aspect=2.0,
+                                                legend=LEGEND, axes=_axes("E[v] (probability)"))
+        self._legend = tuple(self.object_labels())
+
+    def object_labels(self) -> list[str]:
+        """The E[v] plot's series names: each object's map label ('#4'), '—' for a series not used yet."""
+        return [object_label(i) for i in self._obj_ids] + ["—"] * (MAX_OBJECTS - len(self._obj_ids))
 
     def load_history(self, snapshots: list[Snapshot]) -> None:
         """Start the plots over from these snapshots (a replay jumped in time); the next update draws them."""
         self.rows.clear()
         self._obj_ids.clear()
-        for snap in snapshots[-HISTORY:]:
+        for snap in snapshots:
             self._add_row(snap)
+        if snapshots:  # what follows continues this history
+            self._last_state, self._last_t = snapshots[-1].run_state, snapshots[-1].state.t
         self._last_plot = 0.0
 
+    def _new_run(self, snap: Snapshot) -> bool:
+        """A run began (Start from rest) or time went back (Reset): the history starts over."""
+        began = snap.run_state == RunState.RUNNING and self._last_state not in (RunState.RUNNING, RunState.PAUSED,
+                                                                                   None)
+        back = snap.state.t < self._last_t - 1e-9
+        self._last_state, self._last_t = snap.run_state, snap.state.t
+        return began or back
+
     def update(self, snap: Snapshot) -> None:
+        if self._new_run(snap):
+            self.rows.clear()
+            self._obj_ids.clear()
         self._add_row(snap)
         now = time.monotonic()
         if self.solve is None or now - self._last_plot < PLOT_PERIOD_S:
@@ -100,10 +165,14 @@ class MonitorPanel:
     def _plot(self) -> None:
         if self.solve is None or self.errors is None or self.clearance is None or self.consistency is None:
             return
-        cols = list(zip(*self.rows, strict=True))
+        cols = list(zip(*self.rows.rows(), strict=True))
         t = np.asarray(cols[0], float)
         self.solve.data = (t, _finite(cols[1]), _finite(cols[2]))
         self.errors.data = (t, _finite(cols[3]), _finite(cols[4]))
         self.clearance.data = (t, _finite(cols[5]))
         evs = np.asarray(cols[6], float)
         self.consistency.data = (t, *[_finite(evs[:, i]) for i in range(MAX_OBJECTS)])
+        legend = tuple(self.object_labels())
+        if legend != self._legend:
+            self._legend = legend
+            self.consistency.series = _series(list(legend))

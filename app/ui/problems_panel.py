@@ -29,7 +29,7 @@ class ProblemsPanel:
         total = sum(c.count for c in snap.problems)
         self.summary.content = "" if not total else (
             f"{glyphs.WARNING} **{total} problem{'s' * (total != 1)}**: "
-            + ", ".join(f"{c.count} {c.kind.label}" for c in snap.problems) + " (Problems tab)")
+            + ", ".join(c.kind.counted(c.count) for c in snap.problems) + " (Problems tab)")
         if self.table is not None:
             self.table.content = self._table(snap.problems)
 

@@ -9,20 +9,34 @@ import numpy as np
 import viser
 
 from app.runtime.snapshot import RunState, Snapshot
-from app.target_check import nearest_obstacle, snapshot_obstacles
+from app.target_check import obstacle_name
 from app.ui import glyphs
 from app.ui.colors import NamedColour
 from app.ui.notify import notify_all
-from tasks.sequencer import GoalShift, SubtaskProgress
+from tasks.sequencer import GoalShift, SubtaskProgress, plural
 
 ETA_WINDOW_S = 3.0
 """The time left of the active subtask is its remaining error over the rate it fell in this window."""
 
 
 def duration(seconds: float) -> str:
-    """'45 s', '2 min 05 s'."""
+    """'0.4 s', '45 s', '2 min 05 s' (tenths below 10 s: a short subtask never reads '0 s')."""
     seconds = max(0.0, float(seconds))
+    if seconds < 10:
+        return f"{seconds:.1f} s"
     return f"{seconds:.0f} s" if seconds < 60 else f"{int(seconds // 60)} min {int(seconds % 60):02d} s"
+
+
+def fresh(snap: Snapshot) -> bool:
+    """A sequence not run yet (all pending): after a finished or failed run, the one authored since."""
+    return bool(snap.progress) and all(p.outcome.value == "pending" for p in snap.progress)
+
+
+def shown_state(snap: Snapshot) -> str:
+    """The run state as the operator should read it: 'ready' once a new sequence replaced a finished one."""
+    if snap.run_state in (RunState.FINISHED, RunState.FAILED, RunState.IDLE) and fresh(snap):
+        return "ready"
+    return snap.run_state.value
 
 
 BAR_COLOURS: dict[RunState, NamedColour] = {RunState.FAILED: "red", RunState.ESTOP: "red", RunState.FINISHED: "green"}
@@ -41,8 +55,14 @@ class ProgressPanel:
         self._recent: deque[tuple[float, float]] = deque()
         self._recent_index = -1
         self._announced: set[tuple] = set()
+        self._run_version: int | None = None
+        """The authored sequence's version when the run started (edits after it apply at the next Start)."""
+        self._last_state = RunState.IDLE
 
     def update(self, snap: Snapshot) -> None:
+        if snap.run_state == RunState.RUNNING and self._last_state not in (RunState.RUNNING, RunState.PAUSED):
+            self._run_version = snap.sequence_version
+        self._last_state = snap.run_state
         self.status.content = self._status(snap)
         self.bar.value = round(100.0 * self._fraction(snap), 1)
         self.bar.color = BAR_COLOURS.get(snap.run_state, "blue")
@@ -52,8 +72,9 @@ class ProgressPanel:
 
     @staticmethod
     def _status(snap: Snapshot) -> str:
-        icon = glyphs.RUN_STATE.get(snap.run_state, glyphs.OTHER_STATE)
-        return (f"{icon} **{snap.run_state.value}** · t = {snap.state.t:.1f} s · {snap.status}  \n"
+        state = shown_state(snap)
+        icon = glyphs.RUN_STATE.get(RunState.IDLE if state == "ready" else snap.run_state, glyphs.OTHER_STATE)
+        return (f"{icon} **{state}** · t = {snap.state.t:.1f} s · {snap.status}  \n"
                 f"map: {snap.map_kind} · constraint: {snap.constraint} · clearance {snap.min_distance_m:.2f} m · "
                 f"collisions {snap.collisions}")
 
@@ -88,34 +109,70 @@ class ProgressPanel:
         return max(0.0, e1) / ((e0 - e1) / (t1 - t0))
 
     def _time_left(self, snap: Snapshot) -> str:
+        text = self._progress_text(snap)
+        if snap.run_state in (RunState.RUNNING, RunState.PAUSED) and self._run_version is not None \
+                and snap.sequence_version != self._run_version:
+            text += f"  \n{glyphs.WARNING} the sequence was edited during the run: the edits apply at the next Start"
+        return text
+
+    def _progress_text(self, snap: Snapshot) -> str:
         progress = snap.progress
         if not progress:
             return ""
         pending = [p for p in progress if p.outcome.value == "pending"]
         budget = sum(p.timeout_s for p in pending if np.isfinite(p.timeout_s))
+        by_timeouts = f"at most {duration(budget)} by their timeouts" if budget > 0 else ""
+        if fresh(snap):
+            return f"{plural(len(progress), 'subtask')}" + (f", {by_timeouts}" if by_timeouts else "")
+        ran = duration(sum(p.elapsed_s for p in progress))
         if snap.run_state == RunState.FINISHED:
-            return f"finished after {duration(sum(p.elapsed_s for p in progress))}"
+            return f"finished after {ran}"
         active = self._active(snap)
         if active is None:
-            return f"{len(progress)} subtasks, at most {duration(budget)} by their timeouts"
+            failed = [p for p in progress if p.outcome.value == "failed"]
+            stopped = (failed + pending)[0] if failed or pending else None
+            where = f" at subtask {stopped.index + 1}/{len(progress)}" if stopped is not None else ""
+            return f"stopped{where} after {ran}" + (f"; {len(pending)} not run" if pending else "")
+        return self._active_text(snap, active, pending, by_timeouts)
+
+    def _active_text(self, snap: Snapshot, active: SubtaskProgress, pending: list[SubtaskProgress],
+                     by_timeouts: str) -> str:
+        """'subtask 2/5: about 12 s left (1.20 m to go) · times out in 38 s · then 3 more (at most 2 min)'; the
+        estimate never exceeds the time to the timeout (it says when the rate would not make it)."""
         eta = self._eta(active, snap.state.t)
-        left = "time left unknown yet" if eta is None else f"about {duration(eta)} left"
-        timeout = ""
-        if np.isfinite(active.timeout_s):
-            timeout = f" · times out in {duration(active.timeout_s - active.elapsed_s)}"
-        after = f" · then {len(pending)} more (at most {duration(budget)})" if pending else ""
-        return (f"subtask {active.index + 1}/{len(progress)}: {left} ({active.position_error_m:.2f} m to go)"
+        timeout_left = active.timeout_s - active.elapsed_s if np.isfinite(active.timeout_s) else np.inf
+        if active.no_path:
+            left = "no path to the goal"
+        elif eta is None:
+            left = "time left unknown yet"
+        elif eta > timeout_left:
+            left = "too slow to make it before the timeout at this rate"
+        else:
+            left = f"about {duration(eta)} left"
+        timeout = f" · times out in {duration(timeout_left)}" if np.isfinite(timeout_left) else ""
+        after = f" · then {len(pending)} more" + (f" ({by_timeouts})" if by_timeouts else "") if pending else ""
+        return (f"subtask {active.index + 1}/{len(snap.progress)}: {left} ({active.position_error_m:.2f} m to go)"
                 f"{timeout}{after}")
 
     def _shift_text(self, shift: GoalShift, snap: Snapshot) -> str:
-        box = nearest_obstacle(np.array(shift.original), snapshot_obstacles(snap))
+        box = obstacle_name(np.array(shift.original), snap)
         return f"goal moved {shift.distance_m:.2f} m to clear {box or 'an obstacle'}"
+
+    def _message(self, p: SubtaskProgress, snap: Snapshot) -> str:
+        """The subtask's message, with the obstacles it speaks of named as the map names them."""
+        if p.goal_shift is not None:
+            return self._shift_text(p.goal_shift, snap)
+        if p.blocked is not None and p.blocked.obstacle_xy is not None and p.outcome.value == "active":
+            name = obstacle_name(np.array(p.blocked.obstacle_xy), snap) or "an obstacle"
+            return (f"blocked: no progress for {duration(p.blocked.for_s)}, {p.position_error_m:.2f} m from the "
+                    f"goal; nearest obstacle {name}, {p.blocked.obstacle_m:.2f} m away (Skip or Stop)")
+        return p.message
 
     def _list(self, snap: Snapshot) -> str:
         lines = []
         for p in snap.progress:
             mark = glyphs.OUTCOME.get(p.outcome.value, "·")
-            message = self._shift_text(p.goal_shift, snap) if p.goal_shift is not None else p.message
+            message = self._message(p, snap)
             lines.append(f"{mark} {p.index + 1}. {p.name}" + (f" — {message}" if message else ""))
         return "  \n".join(lines) or "_no subtasks_"
 

@@ -1,4 +1,5 @@
-"""Run control: start, pause, step, stop, reset, speed, map and constraint kind, emergency stop."""
+"""Run control: start, pause, step, skip the active subtask, stop, reset, speed, map and constraint kind,
+emergency stop."""
 
 from __future__ import annotations
 
@@ -24,7 +25,8 @@ def _choice(value: str, options: tuple[T, ...]) -> T:
 
 ESTOP_HINT = "Zero velocity now; Start resumes the active subtask, Reset starts over"
 CONTROL_HINT = ("Start resumes the subtask that was active after Pause, Stop, an emergency stop or a stale-state "
-                "pause (a finished or failed sequence runs again); Reset starts over: scene, map and progress")
+                "pause (a finished or failed sequence runs again); Skip gives up the active subtask for the "
+                "next; Reset starts over: scene, map and progress")
 
 
 class RunPanel:
@@ -35,7 +37,7 @@ class RunPanel:
         with server.gui.add_folder("Run"):
             self.estop = server.gui.add_button("EMERGENCY STOP (Esc)", color="red", icon=viser.Icon.HAND_STOP,
                                                hint=ESTOP_HINT)
-            self.buttons = server.gui.add_button_group("Control", ("Start", "Pause", "Step", "Stop", "Reset"),
+            self.buttons = server.gui.add_button_group("Control", ("Start", "Pause", "Step", "Skip", "Stop", "Reset"),
                                                        hint=CONTROL_HINT)
             self.speed = server.gui.add_slider("Speed (×)", min=0.1, max=4.0, step=0.1,
                                                initial_value=runtime.config.speed)
@@ -64,7 +66,7 @@ class RunPanel:
 
     def _control(self, action: str) -> None:
         {"Start": self.runtime.start, "Pause": self.runtime.pause, "Step": self.runtime.step,
-         "Stop": self.runtime.stop, "Reset": self.runtime.reset}[action]()
+         "Skip": self.runtime.skip, "Stop": self.runtime.stop, "Reset": self.runtime.reset}[action]()
 
     def update(self, snap: Snapshot) -> None:
         self.estop.disabled = snap.run_state == RunState.ESTOP

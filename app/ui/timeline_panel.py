@@ -7,7 +7,7 @@ import viser
 
 from app.recording.replay import ReplaySource
 from app.runtime.snapshot import Snapshot
-from app.ui.monitor_panel import HISTORY, MonitorPanel
+from app.ui.monitor_panel import MonitorPanel
 from app.ui.notify import guarded
 
 SPEEDS = ("0.25", "0.5", "1", "2", "4", "8")
@@ -38,7 +38,7 @@ class TimelinePanel:
         """Show the run at sim time t: the plots start over from the recorded history up to t."""
         self.source.pause()
         index = int(min(max(self.source.times.searchsorted(t, side="right") - 1, 0), len(self.source.times) - 1))
-        self.monitor.load_history(self.source.snapshots[max(0, index - HISTORY):index])
+        self.monitor.load_history(self.source.snapshots[:index])
         self.source.seek(t)
 
     def _on_button(self, action: str) -> None:

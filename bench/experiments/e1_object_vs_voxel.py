@@ -202,7 +202,7 @@ def summarise(results: list[dict]) -> dict[str, float]:
 
 
 def _slowed_pct(rows: list[dict]) -> float:
-    """Share of the control steps slowed by unknown space ahead (`app/runtime/unknown_ahead.py`), over all trials (%)."""
+    """Share of the control steps slowed by unknown space ahead (`app/runtime/unknown_ahead.py`), all trials (%)."""
     steps = sum(r.get("control_steps", 0) for r in rows)
     return 100.0 * sum(r.get("unknown_slowed_steps", 0) for r in rows) / steps if steps else math.nan
 

@@ -177,6 +177,9 @@ class ObjectMapper:
                     self._update_unmatched(obj, view)
             self._remove_changed()
             self._create_all(found.leftovers)
+        for obj in self.objects.values():
+            if obj.id in matched or np.isnan(obj.last_seen_t):  # matched now, or created by this frame
+                obj.last_seen_t = frame.t
         self.frames_integrated += 1
         return matched
 

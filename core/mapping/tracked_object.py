@@ -80,6 +80,8 @@ class TrackedObject:
         self.submap = ObjectSubmap(voxel_m)
         self.posterior = prior
         self.observations = 1
+        self.last_seen_t = float("nan")
+        """Time (s) of the newest frame that observed the object (set by the mapper)."""
         self.updates = 0
         self.status = ObjectStatus.ACTIVE
         self._shape: _Shape | None = None
@@ -298,4 +300,5 @@ class TrackedObject:
 
     def snapshot(self) -> MappedObject:
         return MappedObject(id=self.id, pose=self.pose, extent=self.extent.copy(), points=self.world_points.copy(),
-                            posterior=self.posterior, status=self.status, observations=self.observations)
+                            posterior=self.posterior, status=self.status, observations=self.observations,
+                            last_seen_t=self.last_seen_t)

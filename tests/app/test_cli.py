@@ -54,11 +54,25 @@ def test_headless_run_with_params_reports_them(tmp_path):
     params = tmp_path / "p.yaml"
     params.write_text("sequencer: {nominal_speed_mps: 0.8}\nhtmpc: {gamma: 2.0}\n")
     out = tmp_path / "report"
-    proc = run_cli("run", "--headless", "--map", "ground_truth", "--sequence", NAV, "--params", str(params),
+    proc = run_cli("run", "--map", "ground_truth", "--sequence", NAV, "--params", str(params),  # headless by default
                    "--max-duration", "60", "--out", str(out))
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert "100%" in proc.stdout  # the bar ends full when the sequence finishes before --max-duration
     report = json.loads((out / "report.json").read_text())
     assert report["meta"]["tunables"]["htmpc"]["gamma"] == 2.0
     assert report["meta"]["tunables"]["sequencer"]["nominal_speed_mps"] == 0.8
     assert report["summary"]["max_base_speed_mps"] > 0.8  # 0.65 m/s with the default 0.6 m/s reference
     assert "problems" in report and "problems:" in proc.stdout
+    assert set(report["problems"]) == {"qp_failure", "fallback", "slow_solve", "fault", "stale_state", "watchdog"}
+    assert all(isinstance(row["count"], int) for row in report["problems"].values())
+
+
+def test_help_shows_defaults_units_and_exit_codes():
+    proc = run_cli("run", "--help", timeout=60)
+    assert proc.returncode == 0
+    text = " ".join(proc.stdout.split())
+    assert "--max-duration S sim time at most (s) (default: 300.0)" in text
+    assert "two_pickups.yaml" in text and "(default: object)" in text
+    assert "--perception-delay S modelled delay (s)" in text and "(default: 0.0)" in text
+    assert "exit codes: 0" in text and "3 the run faulted" in text
+    assert "--headless accepted for older scripts" in text

@@ -192,3 +192,65 @@ def test_without_the_pause_the_same_wait_times_out(robot):
     s.update(state_at(0.0, 0.0), np.zeros((0, 3)), 0.0)
     assert s.update(state_at(0.6, 0.0), np.zeros((0, 3)), 11.5) is None
     assert s.progress[0].outcome == Outcome.FAILED and "timed out" in s.progress[0].message
+
+
+def pen(centre=(3.0, 0.0), half=1.2, n=400, seed=0) -> np.ndarray:
+    """Points on the four walls of a closed square pen (0.6 m high) around `centre`."""
+    rng = np.random.default_rng(seed)
+    s = rng.uniform(-half, half, n)
+    z = rng.uniform(0.1, 0.6, n)
+    c = np.asarray(centre)
+    lo, hi = np.full(n, -half), np.full(n, half)
+    walls = [np.column_stack([c[0] + a, c[1] + b, z]) for a, b in ((s, lo), (s, hi), (lo, s), (hi, s))]
+    return np.concatenate(walls)
+
+
+def test_no_path_is_said_at_once_and_the_base_holds(robot):
+    """A goal inside a closed pen: the first update says "no path to the goal" and the references hold the base."""
+    seq = TaskSequence(subtasks=[BaseSubtask(name="into the pen", target=BasePose(x=3.0, y=0.0), timeout_s=60.0)])
+    s = Sequencer(robot, seq)
+    refs = s.update(state_at(0.0, 0.0), pen(), 0.0)
+    p = s.progress[0]
+    assert p.no_path and p.outcome == Outcome.ACTIVE
+    assert p.message.startswith("no path to the goal (3.00, 0.00)") and "Skip" in p.message
+    assert "no path to the goal" in s.status_line()
+    np.testing.assert_allclose(refs.base.xy, 0.0, atol=1e-9)  # hold where it is
+    s.update(state_at(0.0, 0.0), pen(), 61.0)
+    assert s.failed and "no path to the goal" in s.progress[0].message
+
+
+def test_no_path_to_a_waypoint_names_it(robot):
+    seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=0.0, y=3.0), waypoints=[BasePose(x=3.0, y=0.0)])])
+    s = Sequencer(robot, seq)
+    s.update(state_at(0.0, 0.0), pen(), 0.0)
+    assert s.progress[0].no_path and s.progress[0].message.startswith("no path to waypoint 1 (3.00, 0.00)")
+
+
+def test_skip_goes_on_with_the_next_subtask(robot):
+    seq = TaskSequence(subtasks=[BaseSubtask(name="into the pen", target=BasePose(x=3.0, y=0.0)),
+                                 BaseSubtask(name="back", target=BasePose(x=0.0, y=0.0))])
+    s = Sequencer(robot, seq)
+    s.update(state_at(0.0, 0.0), pen(), 0.0)
+    assert s.skip(1.0)
+    assert s.progress[0].outcome == Outcome.SKIPPED and s.index == 1
+    assert s.update(state_at(0.0, 0.0), pen(), 1.1) is None  # already at the second goal
+    assert s.finished and "1 skipped" in s.status_line()
+    assert not s.skip(2.0)
+
+
+def test_a_base_that_makes_no_progress_says_blocked_with_the_nearest_obstacle(robot):
+    """The goal is reachable on the map but the base stands still: after `stall_s` the subtask says blocked, with
+    the nearest obstacle; moving on clears it."""
+    seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=4.0, y=0.0), timeout_s=60.0)])
+    s = Sequencer(robot, seq)
+    post = np.array([[0.0, 1.5, 0.3]])
+    for t in np.arange(0.0, 9.5, 0.5):
+        s.update(state_at(0.0, 0.0), post, t)
+        assert s.progress[0].blocked is None
+    s.update(state_at(0.0, 0.0), post, 10.5)
+    p = s.progress[0]
+    assert p.blocked is not None and p.blocked.obstacle_xy == pytest.approx((0.0, 1.5))
+    assert p.message.startswith("blocked: no progress for 10 s, 4.00 m from the goal; nearest obstacle 1.50 m away")
+    assert "blocked" in s.status_line()
+    s.update(state_at(1.0, 0.0), post, 11.0)
+    assert s.progress[0].blocked is None and "blocked" not in s.progress[0].message

@@ -159,4 +159,39 @@ def test_only_changed_targets_are_judged(env):
 def test_shipped_examples_pass_in_their_scenes(path, env):
     seq = load_sequence(path)
     scene = load_scene((path.parent / seq.scene).resolve())
-    assert check_sequence(seq, scene.boxes, env) == []
+    assert check_sequence(seq, scene.boxes, env, start_xy=scene.robot_start[:2]) == []
+
+
+def pen_boxes(centre=(4.0, 0.0)) -> list[Obstacle]:
+    """A closed ring of 0.6 m boxes, 3.6 m across, around `centre`: inside, 1.2 m from every box face."""
+    cx, cy = centre
+    out = []
+    for k, d in enumerate(np.arange(-1.8, 1.81, 0.6)):
+        out += [Obstacle(f"pen_s{k}", (cx + d, cy - 1.8, 0.3), (0.6, 0.6, 0.6)),
+                Obstacle(f"pen_n{k}", (cx + d, cy + 1.8, 0.3), (0.6, 0.6, 0.6)),
+                Obstacle(f"pen_w{k}", (cx - 1.8, cy + d, 0.3), (0.6, 0.6, 0.6)),
+                Obstacle(f"pen_e{k}", (cx + 1.8, cy + d, 0.3), (0.6, 0.6, 0.6))]
+    return out
+
+
+def test_a_goal_in_a_closed_pen_is_refused_when_the_scene_is_known(env):
+    """The goal keeps its clearance from every box, but no path leads in: refused, with the nearest position a
+    path reaches; without a known start (a real robot's partial map) it passes."""
+    seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=4.0, y=0.0)),
+                                 BaseSubtask(target=BasePose(x=0.0, y=2.0))])
+    boxes = pen_boxes()
+    assert check_sequence(seq, boxes, env) == []
+    found = check_sequence(seq, boxes, env, start_xy=(0.0, 0.0))
+    assert [(f.index, f.rule, f.severity) for f in found] == [(0, Rule.PATH, Severity.ERROR)]
+    assert "no path reaches it from (0.00, 0.00)" in found[0].message and "pen_" in found[0].message
+    near = np.array(found[0].nearest)
+    assert near[0] < 4.0 - 1.8 - 0.3 - 0.8 + 0.11  # outside the pen, beside it
+    assert not check_sequence(seq, boxes, env, start_xy=(4.0, 0.0), indices=[0])  # starting inside: reachable
+    warned = check_sequence(seq, boxes, env, start_xy=(0.0, 0.0), scene_may_change=True)
+    assert [f.severity for f in warned] == [Severity.WARNING]
+
+
+def test_a_waypoint_in_a_pen_is_refused_and_the_goal_judged_from_before_it(env):
+    seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=0.0, y=3.0), waypoints=[BasePose(x=4.0, y=0.0)])])
+    found = check_sequence(seq, pen_boxes(), env, start_xy=(0.0, 0.0))
+    assert [f.field for f in found] == ["subtasks.0.waypoints.0"]

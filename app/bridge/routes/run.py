@@ -72,6 +72,17 @@ def step(attached: Attached, body: Annotated[StepIn | None, Body()] = None) -> R
     return _status(attached)
 
 
+@router.post("/skip", responses=CONFLICT)
+def skip(attached: Attached) -> RunStatus:
+    """Skip the active subtask (one with no path to its goal, say); the run goes on with the next one. 409 when
+    no subtask is active."""
+    try:
+        attached.runtime.skip()
+    except ValueError as err:
+        raise _conflict(str(err)) from err
+    return _status(attached)
+
+
 router.post("/stop")(_command("stop", lambda rt: rt.stop(), "Stop the sequence; the robot comes to rest."))
 router.post("/reset")(_command("reset", lambda rt: rt.reset(),
                                "Reload the scene (simulation: robot back at its start), clear map, plan, progress "

@@ -67,7 +67,10 @@ def test_run_control_follows_the_runtime(api: httpx.Client, sim_runtime) -> None
     assert api.post("/api/run/step").status_code == 409
     assert api.post("/api/run/pause").json()["run_state"] == "paused"
     assert api.post("/api/run/step", json={"seconds": 0.5}).json()["run_state"] == "paused"
+    skipped = api.post("/api/run/skip").json()
+    assert sim_runtime.sequencer.progress[0].outcome.value == "skipped", skipped
     assert api.post("/api/run/stop").json()["run_state"] == "idle"
+    assert api.post("/api/run/skip").status_code == 409  # nothing active
     assert api.post("/api/run/emergency-stop").json()["run_state"] == "emergency_stop"
     assert api.post("/api/run/reset").json()["run_state"] == "idle"
     assert api.post("/api/run/config", json={"constraint": "edf", "speed": 2.0}).status_code == 200

@@ -38,7 +38,20 @@ def test_plan_classification():
     assert by_kind[ProblemKind.SLOW_SOLVE].last_message == "solve took 180 ms (> 100 ms)"
     assert log.total == 6
     assert summary_line(log.counts()).startswith("2 QP failures (last at 2.0 s), 2 fallback plans")
-    assert json.loads(json.dumps(log.to_json()))["qp_failure"]["count"] == 2
+    table = json.loads(json.dumps(log.to_json()))
+    assert table["qp_failure"]["count"] == 2
+    assert list(table) == [k.value for k in ProblemKind]  # every kind, with its count
+    assert table["watchdog"] == {"count": 0, "first_t": None, "last_t": None, "last_message": ""}
+
+
+def test_plurals_and_a_threshold_never_read_as_equal():
+    log = ProblemLog(slow_solve_ms=100.0)
+    log.observe_plan(plan(PlanStatus.OK), 1.0, 100.3)
+    (slow,) = log.counts()
+    assert slow.last_message == "solve took 100.3 ms (> 100 ms)"
+    assert summary_line(log.counts()) == "1 slow solve (last at 1.0 s)"
+    log.observe_plan(plan(PlanStatus.OK), 2.0, 150.0)
+    assert summary_line(log.counts()) == "2 slow solves (last at 2.0 s)"
 
 
 def test_controller_problems_reach_the_snapshot_and_the_report(tmp_path):
