@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -18,6 +19,7 @@ from pathlib import Path
 import jsonschema
 import numpy as np
 import pytest
+from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap.writer import Writer
 from mcap_protobuf.decoder import DecoderFactory
@@ -229,14 +231,20 @@ def test_problems_and_moved_goals_survive_the_recording(recorded) -> None:
     assert back.progress[0].timeout_s == 30.0
 
 
-def test_a_torn_tail_is_repaired_for_indexed_readers(recorded, tmp_path) -> None:
-    """A file cut inside a write has no footer: `recording repair` copies every complete chunk under a new
-    summary, and the mcap package's indexed reader and the replay then read the same snapshots."""
+def test_a_torn_tail_is_repaired_for_indexed_readers(recorded, tmp_path, capsys) -> None:
+    """A file cut inside a write has no footer: `python -m app recording repair FILE` copies every complete
+    chunk under a new summary, and the mcap package's indexed reader and the replay then read the same
+    snapshots."""
+    from app.cli import main
+
     path, _ = recorded
     cut = tmp_path / "torn.mcap"
     cut.write_bytes(path.read_bytes()[: int(path.stat().st_size * 0.6)])
+    with open(cut, "rb") as f, pytest.raises(McapError):
+        list(make_reader(f).iter_messages())
     streamed = read_recording(cut)
-    line = repair(cut)
+    assert main(["recording", "repair", str(cut)]) == 0
+    line = capsys.readouterr().out
     assert "repaired" in line and "unreadable tail dropped" in line
     with open(cut, "rb") as f:
         statuses = sum(channel.topic == "/run/status" for _, channel, _ in make_reader(f).iter_messages())
@@ -255,3 +263,44 @@ def test_an_older_recording_is_refused_with_a_message(tmp_path) -> None:
         writer.finish()
     with pytest.raises(ValueError, match="older version.*record the run again"):
         read_recording(path)
+
+
+LAYOUT = ROOT / "docs" / "foxglove_layout.json"
+
+
+def _resolve(message: object, fields: str) -> list:
+    """The values a Foxglove message path's fields (`.a.b[0]`, `.objects[:].consistency`) name in a JSON message."""
+    values = [message]
+    for name, index in re.findall(r"\.(\w+)|\[([^\]]*)\]", fields):
+        if name:
+            values = [v[name] for v in values]
+        elif index == ":":
+            values = [item for v in values for item in v]
+        else:
+            values = [v[int(index)] for v in values]
+    return values
+
+
+def test_the_foxglove_layout_shows_what_a_recording_holds(recorded) -> None:
+    """docs/foxglove_layout.json: a 3D panel of the recording's scene topics, plots of E[v] and solve times and
+    the problems table; every topic it names is recorded and every field path resolves to values."""
+    layout = json.loads(LAYOUT.read_text())
+    panels = layout["configById"]
+
+    def leaves(node) -> list[str]:
+        return [node] if isinstance(node, str) else [*leaves(node["first"]), *leaves(node["second"])]
+
+    assert sorted(leaves(layout["layout"])) == sorted(panels)
+    last: dict[str, object] = {}
+    for topic, _, body, _ in _decoded(recorded[0]):
+        last[topic] = body
+    scene = panels["3D!run"]["topics"]
+    assert {"/robot/model", "/scene/boxes", "/map/objects", "/plan/paths", "/map/points"} <= set(scene) <= set(last)
+    assert panels["3D!run"]["followTf"] == "base"
+    paths = [p["value"] for key, panel in panels.items() if key.startswith("Plot!") for p in panel["paths"]]
+    paths += [panel["topicPath"] for key, panel in panels.items() if "topicPath" in panel]
+    assert "/map/posterior.objects[:].consistency" in paths and "/run/status.problems" in paths
+    for path in paths:
+        topic = max((t for t in last if path == t or path.startswith(t + ".")), key=len)
+        values = _resolve(last[topic], path[len(topic):])
+        assert values and all(v is not None for v in values), path
