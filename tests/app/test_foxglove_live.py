@@ -21,7 +21,7 @@ from app.foxglove_live import FoxgloveLive
 from app.runtime import Runtime, RuntimeConfig
 from core.sim.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
-from tests.app.conftest import free_port
+from tests.app.conftest import free_port, start_studio, stop
 
 WANTED = ("/tf", "/scene/boxes", "/robot/model")
 
@@ -112,3 +112,17 @@ def test_a_server_for_a_real_robot_needs_its_access_token() -> None:
     finally:
         rt.shutdown()
         live.close()
+
+
+@pytest.mark.slow
+def test_the_command_line_serves_foxglove_beside_the_studio() -> None:
+    """`python -m app --foxglove PORT`: the studio and the Foxglove server of the same live run."""
+    port = free_port()
+    proc, url = start_studio("--foxglove", str(port))
+    try:
+        assert url.startswith("http://127.0.0.1:")
+        got, seconds = asyncio.run(_first_messages(f"ws://127.0.0.1:{port}", ("/tf", "/scene/boxes"),
+                                                   timeout_s=60.0))
+        assert seconds < 1.0 and got["/scene/boxes"].entities  # type: ignore[attr-defined]
+    finally:
+        stop(proc)
