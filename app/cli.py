@@ -4,6 +4,7 @@
     python -m app run ...               run a sequence headless in lockstep and write a report (JSON + plots);
                                         exit 0 finished, 1 not finished, 2 bad input, 3 fault
     python -m app replay FILE           replay a recorded run in the studio
+    python -m app recording repair FILE give a recording torn by a crash its summary again
 """
 
 from __future__ import annotations
@@ -79,6 +80,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="sim: embedded MuJoCo; bridge: a robot driver connected to the hardware bridge")
     serve.add_argument("--bridge-port", type=int, default=8090, help="port of the hardware bridge (--backend bridge)")
     serve.add_argument("--bridge-host", default="127.0.0.1", help="address of the hardware bridge (--backend bridge)")
+    serve.add_argument("--foxglove", nargs="?", type=int, const=8765, default=None, metavar="PORT",
+                       help="also serve the live run to Foxglove (WebSocket protocol) on --host, port 8765 or PORT")
     run = sub.add_parser("run", help="run a sequence headless in lockstep and write a report", epilog=EXIT_CODES,
                          formatter_class=HelpFormatter,
                          description="Run a sequence headless (no browser) in simulated time, as fast as the machine "
@@ -98,6 +101,13 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_argument("--host", default="127.0.0.1", help="address to serve on")
     replay.add_argument("--port", type=int, default=8080, help="port of the studio page")
     replay.add_argument("--log-level", default="INFO", help="DEBUG, INFO, WARNING or ERROR")
+    recording = sub.add_parser("recording", help="tools for recordings", epilog=EXIT_CODES,
+                               formatter_class=HelpFormatter)
+    recording_sub = recording.add_subparsers(dest="action", required=True)
+    repair = recording_sub.add_parser("repair", help="rewrite the summary of a recording torn by a crash",
+                                      formatter_class=HelpFormatter)
+    repair.add_argument("file", type=Path, help="a recording (.mcap) whose writer was killed")
+    repair.add_argument("--log-level", default="INFO", help="DEBUG, INFO, WARNING or ERROR")
     return parser
 
 
@@ -112,13 +122,13 @@ def _scene_for(args) -> Path:
     return DEFAULT_SCENE
 
 
-def _recorder(args) -> Recorder | None:
-    """The MCAP recorder that --record asks for, else None."""
+def _recorder(args, sim_time: bool = False) -> Recorder | None:
+    """The MCAP recorder that --record asks for, else None; `sim_time`: log times in simulation time."""
     if not args.record:
         return None
     from app.recording import Recorder
 
-    return Recorder(args.record, depth_frames=args.record_depth)
+    return Recorder(args.record, depth_frames=args.record_depth, sim_time=sim_time)
 def _config(args, **extra) -> RuntimeConfig:
     """The runtime's configuration: scene, sequence, map, constraint and the tunables of --params."""
     from core.params_file import Tunables, load_params
@@ -175,15 +185,38 @@ def serve(args) -> int:
     recorder = _recorder(args)
     if recorder is not None:
         runtime.subscribe(recorder)
+    live = _foxglove(args, runtime)
     runtime.start_live()
     print(f"Perceptive HTMPC Studio: open {studio.url} in a browser (Ctrl+C to quit)", flush=True)
     _wait_for_signal()
     runtime.shutdown()
     studio.close()
+    if live is not None:
+        live.close()
     if recorder is not None:
         recorder.close()
     if bridge is not None:
         bridge.stop()
+    return 0
+
+
+def _foxglove(args, runtime):
+    """The Foxglove live server --foxglove asks for (subscribed to the runtime), else None."""
+    if args.foxglove is None:
+        return None
+    from app.foxglove_access import serve_foxglove
+
+    live = serve_foxglove(args.host, args.foxglove, require_token=args.backend == "bridge")
+    runtime.subscribe(live)
+    print(f"Foxglove: open a Foxglove WebSocket connection to {live.url} (layout: docs/foxglove_layout.json)",
+          flush=True)
+    return live
+
+
+def repair_recording(args) -> int:
+    from app.recording.repair import repair
+
+    print(repair(args.file))
     return 0
 
 
@@ -195,7 +228,7 @@ def run_headless(args) -> int:
     config = _config(args, perception_delay_s=args.perception_delay, actuation_delay_s=args.actuation_delay)
     runtime = Runtime(config)
     _check_targets(runtime, args)
-    recorder = _recorder(args)
+    recorder = _recorder(args, sim_time=True)
     if recorder is not None:
         runtime.subscribe(recorder)
     from rich.progress import Progress
@@ -248,12 +281,13 @@ def replay(args) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    if not argv or argv[0] not in ("serve", "run", "replay", "-h", "--help"):
+    if not argv or argv[0] not in ("serve", "run", "replay", "recording", "-h", "--help"):
         argv = ["serve", *argv]
     args = build_parser().parse_args(argv)
     logging.basicConfig(level=args.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     try:
-        return {"serve": serve, "run": run_headless, "replay": replay}[args.command](args)
+        commands = {"serve": serve, "run": run_headless, "replay": replay, "recording": repair_recording}
+        return commands[args.command](args)
     except (FileNotFoundError, ValueError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

@@ -1,21 +1,20 @@
-"""The topics of a studio recording (MCAP, JSON messages with JSON schemas) and their snapshot mapping.
+"""The project's own topics of a studio recording (JSON messages, JSON schemas) and their snapshot mapping.
 
 One published `Snapshot` becomes a handful of messages that share the MCAP `sequence` number (the
-snapshot's index in the recording) and its log time (wall clock, ns):
+snapshot's index in the recording) and its log time (simulation time in lockstep, else wall clock; ns).
+Beside these, `app.recording.foxglove_scene` writes the Foxglove channels the 3D panel draws (`/tf`, `/robot/model`,
+`/scene/boxes`, `/map/objects`, `/plan/paths`, `/map/points`, `/camera/clouds`, `/camera/<name>/depth`).
 
 | topic | schema | when |
 | --- | --- | --- |
 | `/robot/state` | `htmpc.RobotState` (t, q[9], v[9]) | every snapshot |
 | `/robot/command` | `htmpc.JointVelocityCommand` (t, qdot[9], the last command sent) | when known |
 | `/plan` | `htmpc.Plan` (predicted q, v, u, Cartesian paths, task errors, solve times, status) | when a plan exists |
-| `/map/objects` | `htmpc.ObjectMap` (`#id` label, pose, extent, E[v], posterior, status, last seen) | object map only |
-| `/map/points`, `/camera/clouds` | `htmpc.PointCloud` | every `points_every`-th snapshot |
+| `/map/posterior` | `htmpc.ObjectMap` (`#id` label, pose, extent, E[v], posterior, status, last seen) | object map |
 | `/map/edf_slice` | `htmpc.EDFSlice` | when the controller has an EDF |
-| `/scene/boxes` | `htmpc.Boxes` (ground truth, simulation only) | every snapshot |
 | `/sequence/progress` | `htmpc.Progress` (subtasks, active index, planned base path) | every snapshot |
-| `/camera/<name>/depth` | `foxglove.RawImage` (32FC1, metres, 0 = no return) | new frames, opt-in |
 | `/camera/<name>/info` | `htmpc.CameraInfo` (K, T_world_camera, range) | with each depth image |
-| `/run/status` | `htmpc.RunStatus` (run state, status line, clearance, timings, messages) | every snapshot, last |
+| `/run/status` | `htmpc.RunStatus` (run state, status, clearance, timings, problems, messages) | every one, last |
 
 `/run/status` is written last, so a snapshot is whole when its status message is present. JSON has no
 NaN: non-finite numbers are written as null and read back as NaN.
@@ -23,7 +22,6 @@ NaN: non-finite numbers are written as null and read back as NaN.
 
 from __future__ import annotations
 
-import base64
 import math
 from dataclasses import fields, is_dataclass
 from typing import Any
@@ -46,7 +44,7 @@ from core.types import (
 )
 from tasks.sequencer import Blocked, GoalShift, Outcome, SubtaskProgress
 
-FORMAT = "perceptive-htmpc-recording/2"
+FORMAT = "perceptive-htmpc-recording/3"
 """Written to the MCAP header's profile-independent metadata record `recording`."""
 STATUS_TOPIC = "/run/status"
 
@@ -83,12 +81,8 @@ SCHEMAS: dict[str, dict] = {
             "posterior": _obj("N(l | mu, sigma^2) Beta(v | alpha, beta)",
                               {"mu": _NUM, "sigma": _NUM, "alpha": _NUM, "beta": _NUM}),
             "observations": _INT, "label": _STR, "last_seen_t": _NUM})}}),
-    "htmpc.PointCloud": _obj("points in the world frame (m)", {"t": _NUM, "points": _arr(2)}),
     "htmpc.EDFSlice": _obj("EDF slice at height z_m: values[i][j] at origin + voxel (i, j)",
                            {"origin": _arr(), "voxel": _NUM, "z_m": _NUM, "values": _arr(2)}),
-    "htmpc.Boxes": _obj("ground-truth boxes: centre (m), full size (m), yaw (rad)", {
-        "boxes": {"type": "array", "items": _obj("box", {"id": _STR, "position": _arr(), "size": _arr(),
-                                                         "yaw": _NUM})}}),
     "htmpc.Progress": _obj("sequence progress", {
         "active_index": _INT, "sequence_version": _INT, "base_path": _arr(2),
         "subtasks": {"type": "array", "items": {"type": "object"}}}),
@@ -98,22 +92,18 @@ SCHEMAS: dict[str, dict] = {
         "messages": {"type": "array", "items": _STR}, "fault": {"type": ["string", "null"]}}),
     "htmpc.CameraInfo": _obj("depth camera: pinhole K (px), pose T_world_camera (OpenCV axes), range (m)",
                              {"t": _NUM, "camera": _STR, "K": _arr(2), "T_world_camera": _arr(2), "range_m": _NUM}),
-    "foxglove.RawImage": _obj("foxglove.RawImage", {
-        "timestamp": _obj("time", {"sec": _INT, "nsec": _INT}), "frame_id": _STR, "width": _INT, "height": _INT,
-        "encoding": _STR, "step": _INT, "data": {"type": "string", "contentEncoding": "base64"}}),
 }
 
 FIXED_TOPICS: dict[str, str] = {
     "/robot/state": "htmpc.RobotState", "/robot/command": "htmpc.JointVelocityCommand", "/plan": "htmpc.Plan",
-    "/map/objects": "htmpc.ObjectMap", "/map/points": "htmpc.PointCloud", "/camera/clouds": "htmpc.PointCloud",
-    "/map/edf_slice": "htmpc.EDFSlice", "/scene/boxes": "htmpc.Boxes", "/sequence/progress": "htmpc.Progress",
+    "/map/posterior": "htmpc.ObjectMap", "/map/edf_slice": "htmpc.EDFSlice", "/sequence/progress": "htmpc.Progress",
     STATUS_TOPIC: "htmpc.RunStatus",
 }
 
 
 def depth_topics(camera: str) -> dict[str, str]:
-    """The two topics of one depth camera and their schemas."""
-    return {f"/camera/{camera}/depth": "foxglove.RawImage", f"/camera/{camera}/info": "htmpc.CameraInfo"}
+    """The JSON topic of one depth camera (its image is `app.recording.foxglove_scene.depth_topic`) and its schema."""
+    return {f"/camera/{camera}/info": "htmpc.CameraInfo"}
 
 
 # --- values ↔ JSON ------------------------------------------------------------------------------------
@@ -167,8 +157,8 @@ def _known(cls: type, data: dict) -> dict:
 # --- snapshot → messages ------------------------------------------------------------------------------
 
 
-def snapshot_messages(snap: Snapshot, with_points: bool) -> list[tuple[str, dict]]:
-    """The (topic, message) pairs of one snapshot, `/run/status` last."""
+def snapshot_messages(snap: Snapshot) -> list[tuple[str, dict]]:
+    """The (topic, message) pairs of one snapshot's JSON topics, `/run/status` last."""
     t = snap.state.t
     out: list[tuple[str, dict]] = [("/robot/state", {"t": t, "q": _list(snap.state.q), "v": _list(snap.state.v)})]
     if snap.command is not None:
@@ -181,21 +171,15 @@ def snapshot_messages(snap: Snapshot, with_points: bool) -> list[tuple[str, dict
                               "status": p.status.value, "message": p.message, "min_h": _num(p.min_h)}))
     if snap.object_map is not None:
         m = snap.object_map
-        out.append(("/map/objects", {"t": m.t, "removed_ids": list(m.removed_ids), "objects": [
+        out.append(("/map/posterior", {"t": m.t, "removed_ids": list(m.removed_ids), "objects": [
             {"id": o.id, "pose": _list(o.pose), "extent": _list(o.extent), "status": o.status.value,
              "consistency": _num(o.consistency), "posterior": _record(o.posterior), "observations": o.observations,
              "label": object_label(o.id), "last_seen_t": _num(o.last_seen_t)}
             for o in m.objects]}))
-    if with_points and snap.map_points is not None:
-        out.append(("/map/points", {"t": t, "points": _list(snap.map_points, 3)}))
-    if with_points and snap.clouds is not None:
-        out.append(("/camera/clouds", {"t": t, "points": _list(snap.clouds, 3)}))
     if snap.edf_slice is not None:
         e = snap.edf_slice
         out.append(("/map/edf_slice", {"origin": _list(e.origin), "voxel": e.voxel, "z_m": e.z_m,
                                        "values": _list(e.values, 3)}))
-    out.append(("/scene/boxes", {"boxes": [{"id": b.id, "position": list(b.position), "size": list(b.size),
-                                            "yaw": b.yaw} for b in snap.boxes]}))
     out.append(("/sequence/progress", {"active_index": snap.active_index, "sequence_version": snap.sequence_version,
                                        "base_path": _list(snap.base_path),
                                        "subtasks": [_record(p) for p in snap.progress]}))
@@ -209,16 +193,10 @@ def snapshot_messages(snap: Snapshot, with_points: bool) -> list[tuple[str, dict
 
 
 def depth_messages(frame: DepthFrame) -> list[tuple[str, dict]]:
-    """A depth frame as a Foxglove raw image (float32 metres) and its camera info."""
-    depth = np.ascontiguousarray(frame.depth, dtype="<f4")
-    sec = math.floor(frame.t)
-    topics = list(depth_topics(frame.camera))
-    return [(topics[0], {"timestamp": {"sec": sec, "nsec": int(round((frame.t - sec) * 1e9)) % 1_000_000_000},
-                         "frame_id": frame.camera, "width": depth.shape[1], "height": depth.shape[0],
-                         "encoding": "32FC1", "step": 4 * depth.shape[1],
-                         "data": base64.b64encode(depth.tobytes()).decode("ascii")}),
-            (topics[1], {"t": frame.t, "camera": frame.camera, "K": _list(frame.K, 9),
-                         "T_world_camera": _list(frame.T_world_camera, 9), "range_m": frame.range_m})]
+    """A depth frame's camera info (its image goes on a Foxglove channel)."""
+    return [(f"/camera/{frame.camera}/info", {"t": frame.t, "camera": frame.camera, "K": _list(frame.K, 9),
+                                              "T_world_camera": _list(frame.T_world_camera, 9),
+                                              "range_m": frame.range_m})]
 
 
 # --- messages → snapshot ------------------------------------------------------------------------------
@@ -268,11 +246,11 @@ def snapshot_from_messages(messages: dict[str, dict]) -> Snapshot:
     return Snapshot(**_known(Snapshot, dict(
         seq=run["seq"], wall_time=run["wall_time"], state=RobotState(state["t"], _np(state["q"]), _np(state["v"])),
         run_state=RunState(run["run_state"]), status=run["status"],
-        boxes=tuple(Box(b["id"], tuple(b["position"]), tuple(b["size"]), b["yaw"])
+        boxes=tuple(Box(b["id"], tuple(b["position"]), tuple(b["size"]), b["yaw"], b.get("dark", False))
                     for b in messages.get("/scene/boxes", {}).get("boxes", [])),
         plan=_plan(messages["/plan"]) if "/plan" in messages else None,
         base_path=_np_or_none(progress.get("base_path")),
-        object_map=_object_map(messages["/map/objects"]) if "/map/objects" in messages else None,
+        object_map=_object_map(messages["/map/posterior"]) if "/map/posterior" in messages else None,
         map_points=_np(messages["/map/points"]["points"]) if "/map/points" in messages else None,
         clouds=_np(messages["/camera/clouds"]["points"]) if "/camera/clouds" in messages else None,
         edf_slice=None if edf is None else EDFSlice(_np(edf["origin"]), edf["voxel"], edf["z_m"], _np(edf["values"])),
@@ -285,8 +263,7 @@ def snapshot_from_messages(messages: dict[str, dict]) -> Snapshot:
         problems=tuple(_problem(p) for p in run.get("problems", ())))))
 
 
-def depth_frame_from_messages(image: dict, info: dict) -> DepthFrame:
-    """The depth frame of a `/camera/<name>/depth` image and its `/camera/<name>/info`."""
-    depth = np.frombuffer(base64.b64decode(image["data"]), dtype="<f4").reshape(image["height"], image["width"])
+def depth_frame_from_messages(depth: np.ndarray, info: dict) -> DepthFrame:
+    """The depth frame of a `/camera/<name>/depth` image (H×W metres) and its `/camera/<name>/info`."""
     return DepthFrame(t=info["t"], camera=info["camera"], depth=depth.astype(np.float32), K=_np(info["K"]),
                       T_world_camera=_np(info["T_world_camera"]), range_m=info["range_m"])

@@ -11,6 +11,7 @@ from enum import StrEnum
 import numpy as np
 
 from app.runtime.problems import ProblemCount
+from app.runtime.target_marks import TargetMark
 from core.sim.scene import Box
 from core.types import DepthFrame, ObjectMapSnapshot, Plan, RobotState
 from tasks.sequencer import SubtaskProgress
@@ -79,3 +80,5 @@ class Snapshot:
     """Problems of the run so far, counted by kind (`app.runtime.problems`)."""
     fault: str | None = None
     """Why the run is in `RunState.FAULT` (kept until Reset), None without a fault."""
+    targets: tuple[TargetMark, ...] = ()
+    """Waypoints and goals of the sequence (for drawing in recordings and Foxglove)."""

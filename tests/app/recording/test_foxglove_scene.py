@@ -1,0 +1,50 @@
+"""The Foxglove encoding of a snapshot, without a simulation: the localization hook adds base frames to
+`/tf`, targets land in their own frame (an EE target given in the base frame is drawn there), and removed
+or unknown objects are grey."""
+
+from __future__ import annotations
+
+import numpy as np
+from mcap.records import Schema
+
+from app.recording.foxglove_scene import SCHEMAS, plan_paths, transforms
+from app.recording.protobuf import ProtobufDecoder
+from app.runtime.snapshot import Snapshot
+from app.runtime.target_marks import target_marks
+from core.robot.model import READY_Q, RobotModel
+from core.types import RobotState
+from tasks import BasePose, BaseSubtask, TaskSequence
+from tasks.schema import EEPose, EESubtask
+
+
+def _decode(name: str, data: bytes):
+    schema = SCHEMAS[name]
+    return ProtobufDecoder().decode(Schema(id=1, name=schema.name, encoding=schema.encoding, data=schema.data), data)
+
+
+def test_base_poses_the_snapshot_carries_become_frames_of_their_own() -> None:
+    robot = RobotModel()
+    q = READY_Q.copy()
+    q[:3] = (1.0, 2.0, 0.5)
+    snap = Snapshot(seq=0, wall_time=0.0, state=RobotState(3.25, q, np.zeros(9)))
+    plain = {t.child_frame_id for t in _decode("foxglove.FrameTransforms", transforms(robot, snap)).transforms}
+    assert "base_estimated" not in plain and {"base", "wrist_3_link", "camera_base"} <= plain
+    object.__setattr__(snap, "base_estimate", np.array([1.1, 1.9, 0.45]))  # what localization will add
+    tf = _decode("foxglove.FrameTransforms", transforms(robot, snap)).transforms
+    estimated = next(t for t in tf if t.child_frame_id == "base_estimated")
+    assert estimated.parent_frame_id == "world" and (estimated.translation.x, estimated.translation.y) == (1.1, 1.9)
+    assert tf[0].timestamp.seconds == 3 and tf[0].timestamp.nanos == 250_000_000
+
+
+def test_targets_are_drawn_in_their_frame() -> None:
+    sequence = TaskSequence(subtasks=[
+        BaseSubtask(name="drive", waypoints=[BasePose(x=1.0, y=0.0)], target=BasePose(x=2.0, y=1.0, yaw_deg=90)),
+        EESubtask(name="reach", target=EEPose(position=(0.7, 0.0, 0.9), frame="base"))])
+    marks = target_marks(sequence)
+    assert [(m.index, m.goal, m.frame) for m in marks] == [(0, False, "world"), (0, True, "world"), (1, True, "base")]
+    update = _decode("foxglove.SceneUpdate", plan_paths(0.0, None, None, marks, active_index=1))
+    frames = {e.id.split("/")[1] + ("g" if e.texts else "w"): e.frame_id for e in update.entities}
+    assert frames == {"0w": "world", "0g": "world", "1g": "base"}
+    drive = next(e for e in update.entities if e.texts and e.texts[0].text == "drive")
+    assert drive.arrows[0].pose.orientation.z == np.sin(np.pi / 4)
+    assert update.deletions[0].type == 1  # all of the topic's entities first: each message is the whole picture
