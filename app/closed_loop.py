@@ -47,6 +47,7 @@ import numpy as np
 from app.components import make_controller, make_map
 from app.map_kind import MapKind
 from app.map_process import MapProcess, MapProcessError
+from app.object_names import ObjectNames, map_objects
 from app.problems import ProblemKind, ProblemLog
 from app.run_log import RunLog
 from app.snapshot import RunState
@@ -59,6 +60,7 @@ from core.robot.state_history import StateHistory
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
 from core.types import NQ, DepthFrame, LocalEDF, Observation, Plan, PlanStatus, RobotBackend, RobotState
+from tasks.anchors import MapObjects
 from tasks.schema import TaskSequence
 from tasks.sequencer import Sequencer, SubtaskProgress
 
@@ -147,6 +149,9 @@ class ClosedLoop:
         self._last_control_t = -math.inf
         self.log = RunLog()
         self.problems = ProblemLog(1e3 / config.htmpc.control_rate_hz)
+        self.names = ObjectNames(config.sequencer, config.mapping)
+        self.objects_view: MapObjects | None = None
+        """What the sequencer saw of the named objects at the last control step (None: nothing anchored)."""
 
     def _match_sensing(self) -> None:
         """The simulated robot perceives through the sensor model (`SimParams.sensor`), except with the
@@ -455,7 +460,10 @@ class ClosedLoop:
                 t_edf = time.perf_counter()
                 edf = world_map.local_edf(state.q[:2])
                 edf_ms = (time.perf_counter() - t_edf) * 1e3
-            refs = sequencer.update(state, occupied, state.t)
+                objects = map_objects(self.names, world_map, sequencer.sequence, self.world, state.t)
+            refs = sequencer.update(state, occupied, state.t, objects)
+            for notice in sequencer.take_notices():
+                self.notify(notice)
             plan, solve_ms = None, math.nan
             if refs is not None:
                 t_solve = time.perf_counter()
@@ -463,7 +471,7 @@ class ClosedLoop:
                 solve_ms = (time.perf_counter() - t_solve) * 1e3
                 self.problems.observe_plan(plan, state.t, solve_ms)
             with self.lock:
-                self.last_edf, self.view = edf, SequenceView.of(sequencer)
+                self.last_edf, self.view, self.objects_view = edf, SequenceView.of(sequencer), objects
                 self.timings_ms["edf"] = edf_ms
                 if self.run_state != RunState.RUNNING:  # stopped, e-stopped or faulted during the step
                     return

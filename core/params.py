@@ -393,3 +393,13 @@ class SequencerParams:
     plan's nearest point to it); re-plans then start from the next one."""
     goal_slowdown_m: float = 0.8
     """Within this distance of the final goal the reference stops advancing past it."""
+    anchor_follow_m: float = 0.1
+    """An anchored target that moved more than this since the plan was made (the map found its object
+    elsewhere) re-makes the plan and the A* path, and the operator is told; below it the references follow
+    the object every period without a re-plan (the map's pose jitters by a few centimetres)."""
+    anchor_bind_radius_m: float = 0.45
+    """A name whose object is not bound yet binds to the mapped object whose centre is nearest to where the
+    name was given (or, in simulation, where the named scene box is), if within this radius (3/4 of a box)."""
+    anchor_candidate_margin_s: float = 1.0
+    """A lost name re-binds only to an object first mapped at most this long before its own object was last
+    observed (a box moved far is a new object, seen before the old one is removed)."""
