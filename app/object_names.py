@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -28,7 +29,10 @@ from core.params import MappingParams, SequencerParams
 from core.sim.world import SimWorld
 from core.types import MappedObject, ObjectMapSnapshot, ObjectStatus
 from tasks.anchors import MapObjects, ObjectView
-from tasks.schema import NamedObject, TaskSequence, anchored_poses
+from tasks.schema import NamedObject, TaskSequence
+
+if TYPE_CHECKING:
+    from app.runtime import Runtime
 
 
 @dataclass(frozen=True)
@@ -162,14 +166,39 @@ class ObjectNames:
 
 def map_objects(names: ObjectNames, world_map: WorldMap, sequence: TaskSequence, world: SimWorld | None,
                 t: float) -> MapObjects | None:
-    """What the sequencer sees of the map for `sequence`'s anchors (None when nothing is anchored): the object
+    """What the sequencer sees of the map for `sequence`'s named objects (None when it names none): the object
     map's live objects, or with the ground-truth map the simulated boxes themselves."""
-    if not anchored_poses(sequence):
+    if not sequence.objects:
         return None
     truth = None if world is None else {b.id: np.asarray(b.position, float) for b in world.boxes()}
-    if isinstance(world_map, GroundTruthMap):
-        seen = [SeenObject(b.id, np.asarray(b.position, float), float(b.yaw), np.asarray(b.size, float))
-                for b in world_map.world.boxes()]
-    else:
-        seen = seen_objects(world_map.snapshot())
-    return names.view(t, seen, sequence.objects, truth)
+    return names.view(t, _seen(world_map, world), sequence.objects, truth)
+
+
+def find_object(world_map: WorldMap, world: SimWorld | None, object_id: str) -> SeenObject | None:
+    """The live object `object_id` of the map (with the ground-truth map, the scene box of that id)."""
+    return next((o for o in _seen(world_map, world) if o.id == object_id), None)
+
+
+def _seen(world_map: WorldMap, world: SimWorld | None) -> list[SeenObject]:
+    """The map's live objects; with the ground-truth map, the simulated boxes themselves (ids = box ids)."""
+    if isinstance(world_map, GroundTruthMap) and world is not None:
+        return [SeenObject(b.id, np.asarray(b.position, float), float(b.yaw), np.asarray(b.size, float))
+                for b in world.boxes()]
+    return seen_objects(world_map.snapshot())
+
+
+def name_object(runtime: Runtime, name: str, object_id: str) -> TaskSequence:
+    """`Runtime.name_object`: bind `name` to the live object `object_id` and save it in the sequence."""
+    loop = runtime.closed_loop
+    with loop.using_map() as world_map:
+        obj = find_object(world_map, runtime.world, object_id)
+    if obj is None:
+        raise ValueError(f"no object {object_id!r} in the map")
+    seq = runtime.sequence
+    named = NamedObject(position=(float(obj.position[0]), float(obj.position[1]), float(obj.position[2])),
+                        yaw_deg=math.degrees(obj.yaw))
+    sequence = TaskSequence.model_validate({**seq.model_dump(), "objects": {**seq.model_dump()["objects"],
+                                                                          name: named.model_dump()}})
+    loop.names.name(name, obj, runtime.time)
+    runtime.set_sequence(sequence)
+    return sequence

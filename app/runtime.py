@@ -34,6 +34,7 @@ from app.live_loops import LiveLoops
 from app.map_kind import MAP_KINDS, MapKind
 from app.map_process import MapProcess
 from app.native_memory import limit_arenas, release_free_memory
+from app.object_names import name_object
 from app.problems import ProblemLog
 from app.run_log import RunLog
 from app.snapshot import RunState, Snapshot
@@ -340,6 +341,11 @@ class Runtime:
         self.sequence = sequence
         self.sequence_version += 1
         self._loop.set_sequence(sequence)
+
+    def name_object(self, name: str, object_id: str) -> TaskSequence:
+        """Name a mapped object (`object_<n>`; a scene box id with the ground-truth map) for anchored targets:
+        bound now and saved with the sequence where it is; ValueError for a bad name or an unknown object."""
+        return name_object(self, name, object_id)
 
     # --- scene edits (simulation only) -------------------------------------------------------------
 

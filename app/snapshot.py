@@ -13,6 +13,7 @@ import numpy as np
 from app.problems import ProblemCount
 from core.sim.scene import Box
 from core.types import DepthFrame, ObjectMapSnapshot, Plan, RobotState
+from tasks.anchors import MapObjects
 from tasks.sequencer import SubtaskProgress
 
 
@@ -79,3 +80,5 @@ class Snapshot:
     """Problems of the run so far, counted by kind (`app.problems`)."""
     fault: str | None = None
     """Why the run is in `RunState.FAULT` (kept until Reset), None without a fault."""
+    anchors: MapObjects | None = None
+    """The named objects as the sequencer saw them at the last control step (None: no names)."""

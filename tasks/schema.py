@@ -11,7 +11,16 @@ import math
 from typing import TYPE_CHECKING, Annotated, Generic, Literal, TypeVar
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    SerializerFunctionWrapHandler,
+    ValidationError,
+    field_validator,
+    model_serializer,
+    model_validator,
+)
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
 TaskName = Literal["base", "ee"]
@@ -45,6 +54,20 @@ class Anchor(_Strict):
         return f"{self.face} of {self.object}{off}"
 
 
+class _Placed(_Strict):
+    """A pose given in coordinates or by an anchor; an anchored one is written (dumped) as its anchor alone,
+    so that what is written reads back."""
+
+    anchor: Anchor | None = None
+
+    @model_serializer(mode="wrap")
+    def _anchor_alone(self, handler: SerializerFunctionWrapHandler):
+        data = handler(self)
+        if self.anchor is not None and isinstance(data, dict):
+            return {k: v for k, v in data.items() if k in ("anchor",)}
+        return data
+
+
 def _refuse_with_anchor(data, keys: tuple[str, ...], what: str):
     """An anchored pose takes its place from its anchor: world coordinates beside it are a mistake."""
     if isinstance(data, dict) and data.get("anchor") is not None:
@@ -54,13 +77,12 @@ def _refuse_with_anchor(data, keys: tuple[str, ...], what: str):
     return data
 
 
-class BasePose(_Strict):
+class BasePose(_Placed):
     """Base target in the world: x, y (m) and an optional heading `yaw_deg` (None: position only)."""
 
     x: float = 0.0
     y: float = 0.0
     yaw_deg: float | None = None
-    anchor: Anchor | None = None
     """Relative to a named object (x, y, yaw_deg then left out); the sequencer resolves it every period."""
 
     @model_validator(mode="before")
@@ -86,7 +108,7 @@ class BasePose(_Strict):
         return None if self.yaw_deg is None else math.radians(self.yaw_deg)
 
 
-class EEPose(_Strict):
+class EEPose(_Placed):
     """End-effector target: `position` (m) and optional roll-pitch-yaw `rpy_deg` (None: position only), in the
     world or, with `frame: base`, in the base frame (x ahead, z up from the floor): held relative to the base
     wherever it drives."""
@@ -94,8 +116,6 @@ class EEPose(_Strict):
     position: _Vec3 = (0.0, 0.0, 0.0)
     rpy_deg: _Vec3 | None = None
     frame: Frame = "world"
-    anchor: Anchor | None = None
-    """Relative to a named object (position, rpy_deg then left out; the frame is the world's)."""
 
     @model_validator(mode="before")
     @classmethod

@@ -273,6 +273,8 @@ class Sequencer:
         moved = math.inf if self._anchor_goal is None else float(np.linalg.norm(at - self._anchor_goal))
         if moved <= self.params.anchor_follow_m:
             return
+        if self._anchor_goal is None and p.message.endswith(": waiting"):
+            self.progress[self.index] = replace(self.progress[self.index], message="")  # placed: no longer waiting
         if self._anchor_goal is not None and anchor is not None:
             note = f"{anchor.object} moved {moved:.2f} m: target follows"
             self.notices.append(note)
