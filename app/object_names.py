@@ -44,7 +44,8 @@ class SeenObject:
     yaw: float
     extent: np.ndarray
     consistency: float = 1.0
-    observations: int = 0
+    observations: int = -1
+    """How often the map has matched it (−1: the true box of the ground-truth map, always observed)."""
 
     @staticmethod
     def of(obj: MappedObject) -> SeenObject:
@@ -146,7 +147,7 @@ class ObjectNames:
 
     def _follow(self, b: _Binding, o: SeenObject, t: float) -> None:
         b.yaw, b.extent = continuous_yaw(o.yaw, b.yaw, o.extent)
-        if o.observations != b.observations:
+        if o.observations != b.observations or o.observations < 0:
             b.observations, b.last_seen_t = o.observations, t
 
     def _rebind(self, name: str, b: _Binding, free: list[SeenObject], t: float) -> str:
