@@ -26,7 +26,8 @@ subtasks:
 
 def runtime(timeout_s: float) -> Runtime:
     scene = Scene((Box("box_3", (2.5, 0.0, 0.3)), Box("far", (0.0, 4.0, 0.3))), robot_start=(0.0, 0.0, 0.0))
-    return Runtime(RuntimeConfig(map_kind="ground_truth"), scene=scene, sequence=parse_sequence(PICK.format(timeout=timeout_s)))
+    seq = parse_sequence(PICK.format(timeout=timeout_s))
+    return Runtime(RuntimeConfig(map_kind="ground_truth"), scene=scene, sequence=seq)
 
 
 def true_target(rt: Runtime) -> tuple[np.ndarray, np.ndarray]:

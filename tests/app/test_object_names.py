@@ -30,7 +30,8 @@ def test_a_declared_name_binds_near_where_it_was_given_or_waits():
     names = ObjectNames()
     declared = {"shelf": NamedObject(position=(4.0, 1.0, 0.3))}
     assert names.view(0.0, [seen("object_1", 2.0, 0.0)], declared).unresolved == {"shelf": "shelf not yet seen"}
-    assert names.view(0.1, [seen("object_1", 2.0, 0.0), seen("object_5", 4.2, 1.1)], declared).named("shelf").id == "object_5"
+    view = names.view(0.1, [seen("object_1", 2.0, 0.0), seen("object_5", 4.2, 1.1)], declared)
+    assert view.named("shelf").id == "object_5"
 
 
 def test_after_removal_a_name_rebinds_only_to_a_unique_new_candidate():

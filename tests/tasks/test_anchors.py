@@ -58,7 +58,7 @@ def test_anchored_sequence_reads_and_writes_back():
 def test_a_bad_anchor_is_refused_with_its_field_and_line(bad, field, line, words):
     text = GOOD.replace("object: box_3, face: top, offset: [-0.25, 0, 0.7], rpy_deg: [0, 90, 0]", bad)
     if "unknown" in words:
-        text = text.replace("box_3: {}", "box_4: {}").replace("object: box_3, face: front", "object: box_4, face: front")
+        text = text.replace("box_3: {}", "box_4: {}").replace("box_3, face: front", "box_4, face: front")
     with pytest.raises(FileFormatError) as err:
         parse_sequence(text)
     problems = {(f, ln) for f, ln, _ in err.value.problems}
