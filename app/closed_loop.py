@@ -51,6 +51,7 @@ from app.object_names import ObjectNames, map_objects
 from app.problems import ProblemKind, ProblemLog
 from app.run_log import RunLog
 from app.snapshot import RunState
+from app.target_check import recheck_anchored
 from core.htmpc.safety import brake_along, braking_plan
 from core.mapping.frame_exposure import at_exposure
 from core.mapping.world_map import WorldMap
@@ -462,8 +463,7 @@ class ClosedLoop:
                 edf_ms = (time.perf_counter() - t_edf) * 1e3
                 objects = map_objects(self.names, world_map, sequencer.sequence, self.world, state.t)
             refs = sequencer.update(state, occupied, state.t, objects)
-            for notice in sequencer.take_notices():
-                self.notify(notice)
+            self._tell_anchor_moves(sequencer, objects, state.t)
             plan, solve_ms = None, math.nan
             if refs is not None:
                 t_solve = time.perf_counter()
@@ -488,6 +488,16 @@ class ClosedLoop:
             self.notify(sequencer.status_line())
         with self.lock:
             self.timings_ms["control"] = (time.perf_counter() - t0) * 1e3
+
+    def _tell_anchor_moves(self, sequencer: Sequencer, objects: MapObjects | None, t: float) -> None:
+        """An anchored target followed its object: tell the operator, and check the target again there (an
+        unreachable one is a problem with its reason)."""
+        notices = sequencer.take_notices()
+        for notice in notices:
+            self.notify(notice)
+        for reason in recheck_anchored(self, sequencer.sequence, sequencer.index, objects) if notices else []:
+            self.problems.record(ProblemKind.ANCHORED_TARGET, t, reason)
+            self.notify(reason)
 
     def _activate_due(self, t: float) -> None:
         while self._pending_plans and self._pending_plans[0][0] <= t + 1e-9:

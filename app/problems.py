@@ -22,6 +22,7 @@ class ProblemKind(StrEnum):
     FAULT = "fault"
     STALE_STATE = "stale_state"
     WATCHDOG = "watchdog"
+    ANCHORED_TARGET = "anchored_target"
 
     @property
     def label(self) -> str:
@@ -30,7 +31,7 @@ class ProblemKind(StrEnum):
 
 _LABELS = {ProblemKind.QP_FAILURE: "QP failures", ProblemKind.FALLBACK: "fallback plans",
            ProblemKind.SLOW_SOLVE: "slow solves", ProblemKind.FAULT: "faults", ProblemKind.STALE_STATE: "stale state",
-           ProblemKind.WATCHDOG: "watchdog events"}
+           ProblemKind.WATCHDOG: "watchdog events", ProblemKind.ANCHORED_TARGET: "anchored targets out of reach"}
 
 NORMAL_STOPS = ("no task",)
 """Braking plans that are not problems: nothing to do (the sequence ended or has not started)."""

@@ -113,3 +113,17 @@ def test_the_sequencer_follows_the_object_and_waits_when_it_is_gone(robot):
     assert s.update(state_at(1.3, 0.42), np.zeros((0, 3)), 7.0, gone) is None
     assert s.progress[1].outcome == Outcome.FAILED
     assert s.progress[1].message == "timed out after 5 s: box_3 not in the map"
+
+
+def test_validation_checks_an_anchored_target_where_its_object_is(robot):
+    from tasks.validation import Obstacle, RobotEnvelope, Rule, Severity, check_sequence
+
+    env = RobotEnvelope.of(robot, delta_safe_m=0.25)
+    seq = parse_sequence(GOOD.replace("offset: [-0.9, 0, 0]", "offset: [-0.2, 0, 0]"))  # base too near the box
+    here = Obstacle("box_3", (2.5, 0.0, 0.3), (0.6, 0.6, 0.6))
+    found = check_sequence(seq, [here], env, anchors={"box_3": here})
+    assert [(f.field, f.rule) for f in found] == [("subtasks.0.target", Rule.BASE_CLEARANCE)]
+    assert "(2.00, 0.00)" in found[0].message  # checked where the anchor puts it, not at (0, 0)
+    unseen = check_sequence(seq, [], env, anchors={})
+    assert {f.rule for f in unseen} == {Rule.ANCHOR} and all(f.severity == Severity.WARNING for f in unseen)
+    assert "box_3 is not in the map yet" in unseen[0].message
