@@ -5,6 +5,7 @@ where it was, and follows a box pushed during the reach; never a collision."""
 import numpy as np
 import pytest
 
+from app.problems import ProblemKind
 from app.runtime import Runtime, RuntimeConfig
 from app.snapshot import RunState
 from core.sim.scene import Box, Scene
@@ -107,3 +108,27 @@ def test_a_box_pushed_during_the_reach_is_followed_without_collision():
     pos, ang = ee_error(rt)
     assert pos <= 0.02 and ang <= 5.0, (pos, ang)
     assert len(rt.world.collisions) == 0 and np.nanmin(closest) > 0.0
+
+
+@pytest.mark.slow
+def test_an_anchored_target_moved_out_of_reach_is_a_problem_with_its_reason():
+    scene = Scene((Box("box_3", (3.0, 0.0, 0.3)), Box("blocker", (5.0, 2.0, 0.3))), robot_start=(0.0, 0.0, 0.0))
+    seq = parse_sequence("""
+objects: {box_3: {}}
+subtasks:
+- kind: base
+  target: {anchor: {object: box_3, face: front, offset: [-0.9, 0, 0]}}
+""")
+    rt = Runtime(RuntimeConfig(map_kind="ground_truth"), scene=scene, sequence=seq)
+    messages: list[str] = []
+    rt.subscribe(lambda snap: messages.extend(snap.messages))
+
+    def move(r: Runtime) -> None:
+        if r.time >= 1.0 and r.world.box("box_3").position[0] < 4.0:
+            r.move_box("box_3", (6.0, 2.0, 0.3))  # its front goal (4.8, 2.0) is now beside the blocker
+
+    rt.run_lockstep(2.0, until_done=False, publish_every=1, on_control=move)
+    counts = {c.kind: c for c in rt.problems.counts()}
+    problem = counts[ProblemKind.ANCHORED_TARGET]
+    assert "blocker" in problem.last_message and "its object moved" in problem.last_message
+    assert any(m.startswith("box_3 moved 3.") and m.endswith(": target follows") for m in messages)
