@@ -54,6 +54,15 @@ class Anchor(_Strict):
         return f"{self.face} of {self.object}{off}"
 
 
+def _require_unanchored(title: str, data, keys: tuple[str, ...]):
+    """Without an anchor, the coordinates are required (pydantic's own 'missing' error at each key)."""
+    if isinstance(data, dict) and data.get("anchor") is None:
+        missing = [InitErrorDetails(type="missing", loc=(k,), input=data) for k in keys if k not in data]
+        if missing:
+            raise ValidationError.from_exception_data(title, missing)
+    return data
+
+
 class _Placed(_Strict):
     """A pose given in coordinates or by an anchor; an anchored one is written (dumped) as its anchor alone,
     so that what is written reads back."""
@@ -89,9 +98,7 @@ class BasePose(_Placed):
     @classmethod
     def _place(cls, data):
         data = _refuse_with_anchor(data, ("x", "y", "yaw_deg"), "base pose")
-        if isinstance(data, dict) and data.get("anchor") is None and not {"x", "y"} <= set(data):
-            raise ValueError("a base pose needs x and y (or an anchor)")
-        return data
+        return _require_unanchored(cls.__name__, data, ("x", "y"))
 
     @field_validator("anchor")
     @classmethod
@@ -123,9 +130,7 @@ class EEPose(_Placed):
         data = _refuse_with_anchor(data, ("position", "rpy_deg"), "EE pose")
         if isinstance(data, dict) and data.get("anchor") is not None and data.get("frame", "world") != "world":
             raise ValueError("an anchored EE pose is in the object's frame: drop 'frame: base'")
-        if isinstance(data, dict) and data.get("anchor") is None and "position" not in data:
-            raise ValueError("an EE pose needs a position (or an anchor)")
-        return data
+        return _require_unanchored(cls.__name__, data, ("position",))
 
     def rotation(self) -> np.ndarray | None:
         """World rotation R_d (3×3) from rpy (fixed axes x, y, z), None when position only."""
