@@ -18,7 +18,7 @@ import numpy as np
 from core.params import HTMPCParams, SequencerParams
 from core.robot.model import READY_Q, RobotModel
 from core.types import References, RobotState
-from tasks.anchors import MapObjects, anchor_of, is_anchored, resolve_subtask
+from tasks.anchors import MapObjects, anchor_of, describe, is_anchored, resolve_subtask
 from tasks.occupancy import OccupancyGrid
 from tasks.path_planner import NoPathError, plan_path
 from tasks.references import (
@@ -28,7 +28,7 @@ from tasks.references import (
     path_arclength,
     project_on_path,
 )
-from tasks.schema import BasePose, BaseSubtask, EESubtask, TaskSequence
+from tasks.schema import Anchor, BasePose, BaseSubtask, EESubtask, TaskSequence
 
 log = logging.getLogger(__name__)
 
@@ -68,6 +68,8 @@ class SubtaskProgress:
     timeout_s: float = float("nan")
     goal_shift: GoalShift | None = None
     """Set while the base drives to a goal the planner moved off an obstacle; completion is judged there."""
+    anchor: Anchor | None = None
+    """The anchor of the subtask's goal (None: a world or base-frame goal)."""
     anchored_goal: tuple[float, float, float] | None = None
     """Where an anchored goal is now in the world (the studio joins it to its object); None when not anchored
     or not placed (waiting)."""
@@ -108,7 +110,8 @@ class Sequencer:
     def reset(self) -> None:
         """Back to the first subtask, nothing done."""
         self.index = 0
-        self.progress = [SubtaskProgress(i, s.name or f"{s.kind} {i + 1}", s.kind, timeout_s=s.timeout_s)
+        self.progress = [SubtaskProgress(i, s.name or describe(s) or f"{s.kind} {i + 1}", s.kind,
+                                         timeout_s=s.timeout_s, anchor=anchor_of(s))
                          for i, s in enumerate(self.sequence.subtasks)]
         self._started_t: float | None = None
         self._held_since: float | None = None
