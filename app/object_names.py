@@ -200,6 +200,7 @@ def name_object(runtime: Runtime, name: str, object_id: str) -> TaskSequence:
                         yaw_deg=math.degrees(obj.yaw))
     sequence = TaskSequence.model_validate({**seq.model_dump(), "objects": {**seq.model_dump()["objects"],
                                                                           name: named.model_dump()}})
-    loop.names.name(name, obj, runtime.time)
+    with loop.step_lock:  # the control step reads the names (live mode: another thread)
+        loop.names.name(name, obj, runtime.time)
     runtime.set_sequence(sequence)
     return sequence
