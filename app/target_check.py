@@ -8,8 +8,17 @@ import numpy as np
 from app.object_label import object_label
 from core.params import HTMPCParams, SequencerParams
 from core.types import ObjectMapSnapshot, ObjectStatus
+from tasks.anchors import MapObjects
 from tasks.schema import TaskSequence
-from tasks.validation import Obstacle, RobotEnvelope, TargetFinding, box_distance, require_valid
+from tasks.validation import (
+    Obstacle,
+    RobotEnvelope,
+    Severity,
+    TargetFinding,
+    box_distance,
+    check_sequence,
+    require_valid,
+)
 
 
 def _mapped(object_map: ObjectMapSnapshot | None) -> tuple[Obstacle, ...]:
@@ -78,4 +87,37 @@ def check_targets(runtime, sequence: TaskSequence, *, scene_may_change: bool = F
         start = np.asarray(runtime.state.q[:2], float)
     return require_valid(sequence, scene_obstacles(runtime), envelope_of(runtime), scene_may_change=scene_may_change,
                          indices=indices, source=source, text=text, start_xy=start,
-                         planner=getattr(runtime.config, "sequencer", None))
+                         planner=getattr(runtime.config, "sequencer", None),
+                         anchors=anchor_boxes(runtime, sequence))
+
+
+def named_boxes(objects: MapObjects | None) -> dict[str, Obstacle]:
+    """The named objects of a map view as boxes, by name (with their faces' yaw and extent)."""
+    if objects is None:
+        return {}
+    return {o.name: Obstacle(o.id, (float(o.position[0]), float(o.position[1]), float(o.position[2])),
+                             (float(o.extent[0]), float(o.extent[1]), float(o.extent[2])), float(o.yaw))
+            for o in objects.objects if o.name is not None}
+
+
+def anchor_boxes(runtime, sequence: TaskSequence) -> dict[str, Obstacle]:
+    """Name → the box an anchored target sits on now: the map's object bound to the name, else (simulation)
+    the scene box of that id."""
+    world = getattr(runtime, "world", None)
+    scene = {} if world is None else {b.id: Obstacle(b.id, b.position, b.size, b.yaw) for b in world.boxes()}
+    loop = getattr(runtime, "closed_loop", None)
+    mapped = named_boxes(getattr(loop, "objects_view", None))
+    return {name: mapped.get(name) or scene[name] for name in sequence.objects if name in mapped or name in scene}
+
+
+def recheck_anchored(loop, sequence: TaskSequence, index: int, objects: MapObjects | None) -> list[str]:
+    """Subtask `index`'s anchored targets checked again where their objects are now (after a move), against
+    every object the map sees: the reasons of the rules they break (`loop`: the closed loop, its robot and
+    configuration)."""
+    if objects is None or index >= len(sequence.subtasks):
+        return []
+    obstacles = tuple(Obstacle(o.id, (float(o.position[0]), float(o.position[1]), float(o.position[2])),
+                               (float(o.extent[0]), float(o.extent[1]), float(o.extent[2])), float(o.yaw))
+                      for o in objects.objects)
+    findings = check_sequence(sequence, obstacles, envelope_of(loop), indices=[index], anchors=named_boxes(objects))
+    return [f"subtask {index + 1}: {f.message} (its object moved)" for f in findings if f.severity == Severity.ERROR]

@@ -417,6 +417,16 @@ class SequencerParams:
     """A base subtask whose error to its goal has not fallen by `stall_progress_m` for this long (s, subtask
     time) says "blocked" with the nearest obstacle (the run goes on until its timeout or a Skip)."""
     stall_progress_m: float = 0.1
+    anchor_follow_m: float = 0.1
+    """An anchored target that moved more than this since the plan was made (the map found its object
+    elsewhere) re-makes the plan and the A* path, and the operator is told; below it the references follow
+    the object every period without a re-plan (the map's pose jitters by a few centimetres)."""
+    anchor_bind_radius_m: float = 0.45
+    """A name whose object is not bound yet binds to the mapped object whose centre is nearest to where the
+    name was given (or, in simulation, where the named scene box is), if within this radius (3/4 of a box)."""
+    anchor_candidate_margin_s: float = 1.0
+    """A lost name re-binds only to an object first mapped at most this long before its own object was last
+    observed (a box moved far is a new object, seen before the old one is removed)."""
 
 
 @dataclass(frozen=True)

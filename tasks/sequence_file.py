@@ -28,8 +28,13 @@ def parse_sequence(text: str, source: str = "<sequence>") -> TaskSequence:
 _KEY_ORDER = ("name", "kind", "target", "waypoints", "ee", "tolerance", "timeout_s", "dwell_s", "priority")
 
 
+_PLACE_KEYS = ("x", "y", "yaw_deg", "position", "rpy_deg")
+
+
 def _drop_world_frame(pose):
-    """`frame: world` is the default: written only when it says something."""
+    """`frame: world` is the default: written only when it says something; an anchored pose is its anchor."""
+    if isinstance(pose, dict) and pose.get("anchor") is not None:
+        return {k: v for k, v in pose.items() if k not in (*_PLACE_KEYS, "frame")}
     if isinstance(pose, dict) and pose.get("frame") == "world":
         return {k: v for k, v in pose.items() if k != "frame"}
     if isinstance(pose, list):

@@ -18,6 +18,7 @@ import numpy as np
 from core.params import HTMPCParams, SequencerParams
 from core.robot.model import READY_Q, RobotModel
 from core.types import References, RobotState
+from tasks.anchors import MapObjects, anchor_of, describe, is_anchored, resolve_subtask
 from tasks.occupancy import OccupancyGrid
 from tasks.path_planner import NoPathError, plan_path
 from tasks.references import (
@@ -27,7 +28,7 @@ from tasks.references import (
     path_arclength,
     project_on_path,
 )
-from tasks.schema import BaseSubtask, EESubtask, TaskSequence
+from tasks.schema import Anchor, BasePose, BaseSubtask, EESubtask, TaskSequence
 
 log = logging.getLogger(__name__)
 
@@ -83,6 +84,11 @@ class SubtaskProgress:
     """Set while the base makes no progress (`SequencerParams.stall_s`); cleared when it moves on."""
     no_path: bool = False
     """The planner found no path to the goal (or a waypoint) on the current map: the base holds."""
+    anchor: Anchor | None = None
+    """The anchor of the subtask's goal (None: a world or base-frame goal)."""
+    anchored_goal: tuple[float, float, float] | None = None
+    """Where an anchored goal is now in the world (the studio joins it to its object); None when not anchored
+    or not placed (waiting)."""
 
 
 def _angle_between(R_a: np.ndarray, R_b: np.ndarray) -> float:
@@ -139,7 +145,8 @@ class Sequencer:
     def reset(self) -> None:
         """Back to the first subtask, nothing done."""
         self.index = 0
-        self.progress = [SubtaskProgress(i, s.name or f"{s.kind} {i + 1}", s.kind, timeout_s=s.timeout_s)
+        self.progress = [SubtaskProgress(i, s.name or describe(s) or f"{s.kind} {i + 1}", s.kind,
+                                         timeout_s=s.timeout_s, anchor=anchor_of(s))
                          for i, s in enumerate(self.sequence.subtasks)]
         self._started_t: float | None = None
         self._held_since: float | None = None
@@ -156,6 +163,10 @@ class Sequencer:
         self._best_error = math.inf
         """The base's least error to its goal so far, and when it last fell by `stall_progress_m` (s)."""
         self._improved_t = 0.0
+        self._anchor_goal: np.ndarray | None = None
+        """Where the anchored goal was when the plan was made (a move beyond `anchor_follow_m` re-plans)."""
+        self.notices: list[str] = []
+        """Messages for the operator since the last `take_notices` (an anchored target follows its object)."""
 
     def pause(self, t: float) -> None:
         """Stop the subtask clock at time t: paused time counts toward neither `timeout_s` nor `dwell_s`."""
@@ -222,12 +233,22 @@ class Sequencer:
 
     # --- the loop ------------------------------------------------------------------------------
 
-    def update(self, state: RobotState, occupied_points: np.ndarray | None, t: float) -> References | None:
-        """Advance the state machine and return references for the active subtask (None: stop)."""
-        sub = self.active
-        if sub is None:
+    def take_notices(self) -> list[str]:
+        notices, self.notices = self.notices, []
+        return notices
+
+    def update(self, state: RobotState, occupied_points: np.ndarray | None, t: float,
+               objects: MapObjects | None = None) -> References | None:
+        """Advance the state machine and return references for the active subtask (None: stop); anchored
+        targets are placed on their objects in `objects` (the latest map snapshot) every period."""
+        authored = self.active
+        if authored is None:
             return None
         started_t = self._started_t if self._started_t is not None else self._begin(state, t)
+        sub, why = resolve_subtask(authored, objects)
+        if sub is None:
+            return self._wait(authored, state, t - started_t, why)
+        self._follow(authored, sub, state)
         pos_err, ori_err = self._errors(sub, state)
         elapsed = t - started_t
         tol = sub.tolerance
@@ -242,7 +263,7 @@ class Sequencer:
             log.info("subtask %d %s done after %.1f s", self.index + 1, self.progress[self.index].name, elapsed)
             self.index += 1
             self._started_t = None
-            return self.update(state, occupied_points, t)
+            return self.update(state, occupied_points, t, objects)
         if elapsed > sub.timeout_s:
             p = self.progress[self.index]
             why = "no path to the goal; " if p.no_path else "blocked; " if p.blocked is not None else ""
@@ -266,7 +287,10 @@ class Sequencer:
         self._plan_t = -math.inf
         self._grid_sig = None
         sub = self.active
-        if isinstance(sub, EESubtask) and sub.frame == "world":
+        self._anchor_goal = None
+        if sub is not None and is_anchored(sub):
+            self._hold_base = state.q[:3].copy()  # the stance is set where the anchor is placed (`_follow`)
+        elif isinstance(sub, EESubtask) and sub.frame == "world":
             reach = float(np.hypot(*self.ee_offset_base[:2]))
             self._hold_base = manipulation_stance(np.array(sub.goal().position), state.q[:3], reach)
         else:  # base subtasks, and EE targets in the base frame (only the arm moves)
@@ -296,6 +320,56 @@ class Sequencer:
         if p.blocked is None:
             log.warning("subtask %d %s: %s", self.index + 1, p.name, message)
         self.progress[self.index] = replace(p, blocked=blocked, message=message)
+
+    def _wait(self, sub: BaseSubtask | EESubtask, state: RobotState, elapsed: float, why: str) -> References | None:
+        """An anchored target that cannot be placed (its object not in the map, not seen yet, or ambiguous):
+        the base holds where it is and the hand goes to its ready pose, never toward where the object was;
+        past `timeout_s` the subtask fails with the reason."""
+        self._held_since = None
+        self._anchor_goal = None
+        self.path = None
+        nan = math.nan
+        if elapsed > sub.timeout_s:
+            msg = f"timed out after {sub.timeout_s:g} s: {why}"
+            self._set_progress(Outcome.FAILED, elapsed, 0.0, nan, nan, msg)
+            log.warning("subtask %d failed: %s", self.index + 1, msg)
+            return None
+        message = f"{why}: waiting"
+        if self.progress[self.index].message != message:
+            log.info("subtask %d: %s", self.index + 1, message)
+        self._set_progress(Outcome.ACTIVE, elapsed, 0.0, nan, nan, message)
+        self.progress[self.index] = replace(self.progress[self.index], anchored_goal=None)
+        refs = navigation_references(state.q[None, :2].copy(), 0.0, float(state.q[2]), None, self.ee_offset_base,
+                                     self.params, self.n_nodes, self.dt, ("base", "ee"), self._switched,
+                                     ee_hold=(self.ee_offset_base, None))
+        self._switched = False
+        return refs
+
+    def _follow(self, authored: BaseSubtask | EESubtask, sub: BaseSubtask | EESubtask, state: RobotState) -> None:
+        """Keep an anchored goal on its object: where it is placed first, the stance (EE) is set; moved more
+        than `anchor_follow_m` since, the plan and the A* path are re-made and the operator is told."""
+        anchor = anchor_of(authored)
+        if not is_anchored(authored):
+            return
+        goal = sub.goal()
+        at = np.array([goal.x, goal.y, 0.0]) if isinstance(goal, BasePose) else np.array(goal.position, float)
+        p = self.progress[self.index]
+        self.progress[self.index] = replace(p, anchored_goal=(float(at[0]), float(at[1]), float(at[2])))
+        moved = math.inf if self._anchor_goal is None else float(np.linalg.norm(at - self._anchor_goal))
+        if moved <= self.params.anchor_follow_m:
+            return
+        if self._anchor_goal is None and p.message.endswith(": waiting"):
+            self.progress[self.index] = replace(self.progress[self.index], message="")  # placed: no longer waiting
+        if self._anchor_goal is not None and anchor is not None:
+            note = f"{anchor.object} moved {moved:.2f} m: target follows"
+            self.notices.append(note)
+            log.info("subtask %d: %s", self.index + 1, note)
+            self.progress[self.index] = replace(self.progress[self.index], message=note)
+        self._anchor_goal = at
+        self._plan_t = -math.inf  # re-plan the base path now
+        if isinstance(sub, EESubtask):
+            reach = float(np.hypot(*self.ee_offset_base[:2]))
+            self._hold_base = manipulation_stance(at, state.q[:3], reach)
 
     def _set_progress(self, outcome: Outcome, elapsed: float, held: float, pos: float, ori: float,
                       message: str | None = None) -> None:

@@ -14,6 +14,10 @@ One function, `check_sequence`, serves the studio, YAML files, the bridge API an
   base pose that keeps the base clearance; a base-frame target within reach of the shoulder and clear of
   the robot's own base.
 
+An anchored target (`tasks/anchors.py`) is checked where it is on its object now (`anchors`: name → the
+box it names, its current extent and pose), with the same rules; one whose object is not known yet is a
+warning (it is checked again when the object is seen, and whenever it moves: app/target_check.py).
+
 A target that breaks a rule is refused with the reason and the nearest acceptable value. Rules that
 depend on where the boxes are become warnings when the operator says the scene will change before the
 subtask runs (`scene_may_change`): the operator decides. Boxes are plain geometry (anything with
@@ -23,7 +27,7 @@ subtask runs (`scene_may_change`): the operator decides. Boxes are plain geometr
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 from functools import lru_cache
@@ -35,6 +39,7 @@ from core.params import SequencerParams
 from core.robot.collision_boxes import base_boxes
 from core.robot.model import RobotModel
 from core.yaml_validation import FileFormatError, line_of
+from tasks.anchors import MapObjects, ObjectView, resolve_pose
 from tasks.reachability import FreeSpace
 from tasks.schema import BasePose, BaseSubtask, EEPose, EESubtask, TaskSequence
 
@@ -78,9 +83,10 @@ class Rule(StrEnum):
     SELF_COLLISION = "self_collision"
     PATH = "path"
     """No base path reaches the goal from the robot's start (boxes close it in)."""
+    ANCHOR = "anchor"
 
 
-SCENE_RULES = frozenset({Rule.BASE_CLEARANCE, Rule.HAND_CLEARANCE, Rule.BASE_POSE, Rule.PATH})
+SCENE_RULES = frozenset({Rule.BASE_CLEARANCE, Rule.HAND_CLEARANCE, Rule.BASE_POSE, Rule.PATH, Rule.ANCHOR})
 """Rules that depend on where the boxes are now."""
 
 
@@ -433,7 +439,8 @@ def _finding(index: int, field: str, rule: Rule, message: str, nearest, scene_ma
 
 
 def _path_findings(sequence: TaskSequence, boxes: Sequence[BoxLike], env: RobotEnvelope, start_xy: np.ndarray,
-                   planner: SequencerParams, wanted: set[int] | None, scene_may_change: bool) -> list[TargetFinding]:
+                   planner: SequencerParams, wanted: set[int] | None, scene_may_change: bool,
+                   anchors: Mapping[str, BoxLike] | None = None) -> list[TargetFinding]:
     """Base goals and waypoints that no path reaches from the one before (the first from `start_xy`)."""
     blocking = _base_boxes(boxes, env)
     if not blocking:
@@ -448,7 +455,10 @@ def _path_findings(sequence: TaskSequence, boxes: Sequence[BoxLike], env: RobotE
         poses = [(f"subtasks.{i}.waypoints.{k}", "base waypoint", w) for k, w in enumerate(sub.waypoints)]
         if sub.target is not None:
             poses.append((f"subtasks.{i}.target", "base goal", sub.target))
-        for field, what, pose in poses:
+        for field, what, authored in poses:
+            pose = _placed(authored, anchors or {})
+            if not isinstance(pose, BasePose):
+                continue  # an anchored goal whose object is not in the map yet: checked once it is seen
             xy = pose.xy()
             if space.reachable(here, xy):
                 here = xy
@@ -462,8 +472,21 @@ def _path_findings(sequence: TaskSequence, boxes: Sequence[BoxLike], env: RobotE
     return out
 
 
+def _placed(pose: BasePose | EEPose, anchors: Mapping[str, BoxLike]) -> BasePose | EEPose | None:
+    """The pose where its anchor puts it on its object now (unchanged if not anchored), None if not known."""
+    if pose.anchor is None:
+        return pose
+    box = anchors.get(pose.anchor.object)
+    if box is None:
+        return None
+    obj = ObjectView(box.id, pose.anchor.object, np.asarray(box.position, float), float(box.yaw),
+                     np.asarray(box.size, float))
+    placed = resolve_pose(pose, MapObjects(0.0, (obj,)))
+    return None if isinstance(placed, str) else placed
+
+
 def _findings_for(sub: BaseSubtask | EESubtask, index: int, boxes: Sequence[BoxLike], env: RobotEnvelope,
-                  scene_may_change: bool) -> list[TargetFinding]:
+                  scene_may_change: bool, anchors: Mapping[str, BoxLike] | None = None) -> list[TargetFinding]:
     out: list[TargetFinding] = []
 
     def add(field: str, rule: Rule, message: str, nearest) -> None:
@@ -475,7 +498,13 @@ def _findings_for(sub: BaseSubtask | EESubtask, index: int, boxes: Sequence[BoxL
         poses.append((f"subtasks.{index}.target", sub.target))
     if isinstance(sub, BaseSubtask) and sub.ee is not None:
         poses.append((f"subtasks.{index}.ee", sub.ee))
-    for field, pose in poses:
+    for field, authored in poses:
+        pose = _placed(authored, anchors or {})
+        if pose is None:
+            name = authored.anchor.object if authored.anchor is not None else "?"
+            out.append(TargetFinding(index, field, Rule.ANCHOR, Severity.WARNING,
+                                     f"{name} is not in the map yet: its anchored target is checked when it is seen"))
+            continue
         if isinstance(pose, BasePose):
             what = "base waypoint" if ".waypoints." in field else "base goal"
             found = check_base_pose(pose.xy(), boxes, env, what)
@@ -500,23 +529,25 @@ def _findings_for(sub: BaseSubtask | EESubtask, index: int, boxes: Sequence[BoxL
 def check_sequence(sequence: TaskSequence, boxes: Iterable[BoxLike], envelope: RobotEnvelope, *,
                    scene_may_change: bool = False, indices: Iterable[int] | None = None,
                    start_xy: Sequence[float] | np.ndarray | None = None,
-                   planner: SequencerParams | None = None) -> list[TargetFinding]:
+                   planner: SequencerParams | None = None,
+                   anchors: Mapping[str, BoxLike] | None = None) -> list[TargetFinding]:
     """Every broken rule of the sequence's targets (of the subtasks in `indices`, default all), in order.
 
     Errors refuse the sequence; warnings accept it (rules that depend on the boxes, when `scene_may_change`).
     With the robot's `start_xy` (the scene is known), base goals no path reaches are refused too, on the grid
-    of `planner` (default `SequencerParams()`).
+    of `planner` (default `SequencerParams()`). `anchors` places anchored targets: object name → the box it
+    names now.
     """
     boxes = list(boxes)
     wanted = None if indices is None else set(indices)
     out: list[TargetFinding] = []
     for i, sub in enumerate(sequence.subtasks):
         if wanted is None or i in wanted:
-            out += _findings_for(sub, i, boxes, envelope, scene_may_change)
+            out += _findings_for(sub, i, boxes, envelope, scene_may_change, anchors)
     if start_xy is not None:
         blocked = {f.field for f in out if f.rule == Rule.BASE_CLEARANCE}
         out += [f for f in _path_findings(sequence, boxes, envelope, np.asarray(start_xy, float),
-                                          planner or SequencerParams(), wanted, scene_may_change)
+                                          planner or SequencerParams(), wanted, scene_may_change, anchors)
                 if f.field not in blocked]
         out.sort(key=lambda f: f.index)
     return out
@@ -525,11 +556,12 @@ def check_sequence(sequence: TaskSequence, boxes: Iterable[BoxLike], envelope: R
 def require_valid(sequence: TaskSequence, boxes: Iterable[BoxLike], envelope: RobotEnvelope, *,
                   scene_may_change: bool = False, indices: Iterable[int] | None = None, source: str = "sequence",
                   text: str | None = None, start_xy: Sequence[float] | np.ndarray | None = None,
-                  planner: SequencerParams | None = None) -> list[TargetFinding]:
+                  planner: SequencerParams | None = None,
+                  anchors: Mapping[str, BoxLike] | None = None) -> list[TargetFinding]:
     """`check_sequence`, raising `TargetError` (with YAML lines when `text` is given) if any finding is an
     error; returns the warnings."""
     findings = check_sequence(sequence, boxes, envelope, scene_may_change=scene_may_change, indices=indices,
-                              start_xy=start_xy, planner=planner)
+                              start_xy=start_xy, planner=planner, anchors=anchors)
     errors = [f for f in findings if f.severity == Severity.ERROR]
     if errors:
         raise TargetError(source, errors, text)

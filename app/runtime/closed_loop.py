@@ -45,12 +45,14 @@ from typing import TYPE_CHECKING, TypeVar
 import numpy as np
 
 from app.map_kind import MapKind
+from app.object_names import ObjectNames, map_objects
 from app.runtime.components import make_controller, make_map
 from app.runtime.map_process import MapProcess, MapProcessError
 from app.runtime.problems import ProblemKind, ProblemLog
 from app.runtime.run_log import RunLog
 from app.runtime.snapshot import RunState
 from app.runtime.unknown_ahead import planner_points, unknown_ahead
+from app.target_check import recheck_anchored
 from core.htmpc.safety import brake_along, braking_plan
 from core.localization import Localizer, se2
 from core.mapping.frame_exposure import at_exposure
@@ -73,6 +75,7 @@ from core.types import (
     RobotBackend,
     RobotState,
 )
+from tasks.anchors import MapObjects
 from tasks.schema import TaskSequence
 from tasks.sequencer import Outcome, Sequencer, SubtaskProgress
 
@@ -174,6 +177,9 @@ class ClosedLoop:
         self.reference_override: Callable[[float], ReferenceSurface] | None = None
         """Benchmarks: a reference other than the map's (the true scene's surfaces, to measure registration
         apart from the map it registers against)."""
+        self.names = ObjectNames(config.sequencer, config.mapping)
+        self.objects_view: MapObjects | None = None
+        """What the sequencer saw of the named objects at the last control step (None: nothing anchored)."""
 
     def _match_sensing(self) -> None:
         """The simulated robot perceives through the sensor model (`SimParams.sensor`), except with the
@@ -583,7 +589,9 @@ class ClosedLoop:
                 t_edf = time.perf_counter()
                 edf = world_map.local_edf(state.q[:2])
                 edf_ms = (time.perf_counter() - t_edf) * 1e3
-            refs = sequencer.update(state, planner_points(occupied, edf), state.t)
+                objects = map_objects(self.names, world_map, sequencer.sequence, self.world, state.t)
+            refs = sequencer.update(state, planner_points(occupied, edf), state.t, objects)
+            self._tell_anchor_moves(sequencer, objects, state.t)
             notice = self._unknown_notice(state, refs, edf)
             plan, solve_ms = None, math.nan
             if refs is not None:
@@ -592,7 +600,7 @@ class ClosedLoop:
                 solve_ms = (time.perf_counter() - t_solve) * 1e3
                 self.problems.observe_plan(plan, state.t, solve_ms)
             with self.lock:
-                self.last_edf, self.view = edf, SequenceView.of(sequencer, notice)
+                self.last_edf, self.view, self.objects_view = edf, SequenceView.of(sequencer, notice), objects
                 self.timings_ms["edf"] = edf_ms
                 if self.run_state != RunState.RUNNING:  # stopped, e-stopped or faulted during the step
                     return
@@ -622,6 +630,16 @@ class ClosedLoop:
                 self.problems.record(ProblemKind.UNKNOWN_SPACE, state.t, notice)
         self._unknown_slowed = notice is not None
         return notice
+
+    def _tell_anchor_moves(self, sequencer: Sequencer, objects: MapObjects | None, t: float) -> None:
+        """An anchored target followed its object: tell the operator, and check the target again there (an
+        unreachable one is a problem with its reason)."""
+        notices = sequencer.take_notices()
+        for notice in notices:
+            self.notify(notice)
+        for reason in recheck_anchored(self, sequencer.sequence, sequencer.index, objects) if notices else []:
+            self.problems.record(ProblemKind.ANCHORED_TARGET, t, reason)
+            self.notify(reason)
 
     def _activate_due(self, t: float) -> None:
         while self._pending_plans and self._pending_plans[0][0] <= t + 1e-9:

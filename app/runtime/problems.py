@@ -23,6 +23,7 @@ class ProblemKind(StrEnum):
     STALE_STATE = "stale_state"
     WATCHDOG = "watchdog"
     UNKNOWN_SPACE = "unknown_space"
+    ANCHORED_TARGET = "anchored_target"
 
     @property
     def label(self) -> str:
@@ -35,11 +36,13 @@ class ProblemKind(StrEnum):
 
 _LABELS = {ProblemKind.QP_FAILURE: "QP failures", ProblemKind.FALLBACK: "fallback plans",
            ProblemKind.SLOW_SOLVE: "slow solves", ProblemKind.FAULT: "faults", ProblemKind.STALE_STATE: "stale state",
-           ProblemKind.WATCHDOG: "watchdog events", ProblemKind.UNKNOWN_SPACE: "unknown space ahead"}
+           ProblemKind.WATCHDOG: "watchdog events", ProblemKind.UNKNOWN_SPACE: "unknown space ahead",
+           ProblemKind.ANCHORED_TARGET: "anchored targets out of reach"}
 _SINGULAR = {ProblemKind.QP_FAILURE: "QP failure", ProblemKind.FALLBACK: "fallback plan",
              ProblemKind.SLOW_SOLVE: "slow solve", ProblemKind.FAULT: "fault", ProblemKind.STALE_STATE: "stale state",
              ProblemKind.WATCHDOG: "watchdog event",
-             ProblemKind.UNKNOWN_SPACE: "unknown space ahead"}
+             ProblemKind.UNKNOWN_SPACE: "unknown space ahead",
+             ProblemKind.ANCHORED_TARGET: "anchored target out of reach"}
 
 NORMAL_STOPS = ("no task",)
 """Braking plans that are not problems: nothing to do (the sequence ended or has not started)."""

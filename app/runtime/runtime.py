@@ -28,6 +28,7 @@ import numpy as np
 
 import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported)
 from app.map_kind import MapKind
+from app.object_names import name_object
 from app.runtime.closed_loop import MOVING_STATES, ClosedLoop
 from app.runtime.config import RuntimeConfig
 from app.runtime.live_loops import LiveLoops
@@ -310,6 +311,11 @@ class Runtime:
         self.sequence_version += 1
         self._loop.set_sequence(sequence)
         return warnings
+
+    def name_object(self, name: str, object_id: str) -> TaskSequence:
+        """Name a mapped object (`object_<n>`; a scene box id with the ground-truth map) for anchored targets:
+        bound now and saved with the sequence where it is; ValueError for a bad name or an unknown object."""
+        return name_object(self, name, object_id)
 
     # --- scene edits (simulation only) -------------------------------------------------------------
 

@@ -14,6 +14,7 @@ from app.runtime.problems import ProblemCount
 from app.runtime.target_marks import TargetMark
 from core.sim.scene import Box
 from core.types import DepthFrame, ObjectMapSnapshot, Plan, RobotState
+from tasks.anchors import MapObjects
 from tasks.sequencer import SubtaskProgress
 
 
@@ -82,3 +83,5 @@ class Snapshot:
     """Why the run is in `RunState.FAULT` (kept until Reset), None without a fault."""
     targets: tuple[TargetMark, ...] = ()
     """Waypoints and goals of the sequence (for drawing in recordings and Foxglove)."""
+    anchors: MapObjects | None = None
+    """The named objects as the sequencer saw them at the last control step (None: no names)."""

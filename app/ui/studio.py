@@ -11,6 +11,7 @@ from app.recording.replay import ReplaySource
 from app.runtime import Runtime
 from app.runtime.snapshot import Snapshot
 from app.ui.access import PageAccess, guarded_viser_server
+from app.ui.anchor_panel import AnchorPanel
 from app.ui.authoring_panel import AuthoringPanel
 from app.ui.map_view import MapView
 from app.ui.monitor_panel import MonitorPanel
@@ -88,6 +89,8 @@ class Studio:
             self.scene_panel = ScenePanel(self.server, runtime)
         with tabs.add_tab("Monitor"):
             self.monitor.build_plots()
+        with tabs.add_tab("Names"):
+            self.anchor_panel = AnchorPanel(self.server, runtime)
         with tabs.add_tab("Problems"):
             self.problems.build_table()
         with tabs.add_tab("View"):
@@ -138,6 +141,7 @@ class Studio:
                 self.timeline.update(snap)
             self.scene_panel.update(snap)
             self.authoring.update(snap)
+            self.anchor_panel.update(snap)
             for message in messages:
                 title = "Emergency stop" if message.startswith("emergency stop") else "Runtime"
                 notify_all(self.server, title, message)

@@ -1,0 +1,206 @@
+"""Names for what the map sees: the operator's names (and, in simulation, scene box ids) bound to the map's
+objects, handed to tasks/ as `tasks.anchors.MapObjects` every control period.
+
+The map keeps an object's id through re-association and relocation (a box pushed 20–50 cm is registered at
+its new pose), so a bound name simply follows its id. When POCD removes the object (moved farther, or gone),
+the name is lost and re-binds only to a *unique* candidate: a live, unnamed object of the same extent (within
+the map's association gate, x and y either way round) first mapped no earlier than `anchor_candidate_margin_s`
+before the lost object was last observed; with several, the name waits ("box_3: 2 candidates"), with none
+"box_3 not in the map". A name never bound binds to the object nearest to where it was given (the sequence's
+`objects`), or in simulation to where its scene box is, within `anchor_bind_radius_m`.
+
+The yaw a name sees is continuous from its binding: the box fit keeps yaw within ±45°, so the raw yaw jumps
+by 90° as a box turns; it is unwrapped by quarter turns toward the previous one (x and y extents swapped on
+odd turns), which keeps each face's label on the same physical face.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from app.runtime.ground_truth_map import GroundTruthMap
+from core.mapping.world_map import WorldMap
+from core.params import MappingParams, SequencerParams
+from core.sim.world import SimWorld
+from core.types import MappedObject, ObjectMapSnapshot, ObjectStatus
+from tasks.anchors import MapObjects, ObjectView
+from tasks.schema import NamedObject, TaskSequence
+
+if TYPE_CHECKING:
+    from app.runtime import Runtime
+
+
+@dataclass(frozen=True)
+class SeenObject:
+    """A mapped object (or, with the ground-truth map, a true box) as the naming sees it."""
+
+    id: str
+    position: np.ndarray
+    yaw: float
+    extent: np.ndarray
+    consistency: float = 1.0
+    observations: int = -1
+    """How often the map has matched it (−1: the true box of the ground-truth map, always observed)."""
+
+    @staticmethod
+    def of(obj: MappedObject) -> SeenObject:
+        R = obj.pose[:3, :3]
+        return SeenObject(f"object_{obj.id}", obj.pose[:3, 3].copy(), float(math.atan2(R[1, 0], R[0, 0])),
+                          np.asarray(obj.extent, float).copy(), obj.consistency, obj.observations)
+
+
+def seen_objects(snapshot: ObjectMapSnapshot) -> list[SeenObject]:
+    return [SeenObject.of(o) for o in snapshot.objects if o.status == ObjectStatus.ACTIVE]
+
+
+@dataclass
+class _Binding:
+    object_id: str | None = None
+    yaw: float = 0.0
+    extent: np.ndarray | None = None
+    observations: int = -1
+    last_seen_t: float = -math.inf
+    lost: bool = False
+
+
+def continuous_yaw(raw: float, previous: float, extent: np.ndarray) -> tuple[float, np.ndarray]:
+    """`raw` shifted by quarter turns to lie within 45° of `previous`, and the extent along the new axes."""
+    k = round((previous - raw) / (math.pi / 2))
+    ext = np.asarray(extent, float).copy()
+    if k % 2:
+        ext[[0, 1]] = ext[[1, 0]]
+    return raw + k * math.pi / 2, ext
+
+
+def same_extent(a: np.ndarray, b: np.ndarray, gate_m: float) -> bool:
+    """Whether two extents match within the gate, x and y either way round."""
+    xy = np.abs(np.sort(a[:2]) - np.sort(b[:2]))
+    return bool(np.all(xy <= gate_m) and abs(float(a[2] - b[2])) <= gate_m)
+
+
+class ObjectNames:
+    """Owns name → object bindings of one run; `view` updates them from a map snapshot (call every period)."""
+
+    def __init__(self, params: SequencerParams | None = None, mapping: MappingParams | None = None) -> None:
+        self.params = params or SequencerParams()
+        self.gate_m = (mapping or MappingParams()).association_gate_m
+        self._bindings: dict[str, _Binding] = {}
+        self._first_seen: dict[str, float] = {}
+
+    def name(self, name: str, obj: SeenObject, t: float) -> None:
+        """The operator names `obj` (any earlier name of it is dropped)."""
+        for other, b in self._bindings.items():
+            if b.object_id == obj.id and other != name:
+                b.object_id, b.lost = None, True
+        self._bindings[name] = _Binding(obj.id, obj.yaw, obj.extent.copy(), obj.observations, t)
+
+    def bound(self) -> dict[str, str]:
+        """Name → object id of the names bound now."""
+        return {n: b.object_id for n, b in self._bindings.items() if b.object_id is not None}
+
+    def view(self, t: float, objects: Iterable[SeenObject], names: Mapping[str, NamedObject],
+             truth: Mapping[str, np.ndarray] | None = None) -> MapObjects:
+        """Bind, follow and re-bind every name in `names` (`truth`: scene box id → true centre, simulation
+        only, for names never bound) and return the objects as tasks/ sees them."""
+        live = {o.id: o for o in objects}
+        for oid in live:
+            self._first_seen.setdefault(oid, t)
+        unresolved: dict[str, str] = {}
+        for name, declared in names.items():
+            why = self._update(name, declared, live, t, truth or {})
+            if why:
+                unresolved[name] = why
+        by_object = {b.object_id: (n, b) for n, b in self._bindings.items() if b.object_id in live}
+        views = []
+        for oid, o in live.items():
+            name, b = by_object.get(oid, (None, None))
+            yaw, extent = (o.yaw, o.extent) if b is None else (b.yaw, b.extent)
+            views.append(ObjectView(oid, name, o.position.copy(), yaw, np.asarray(extent, float), o.consistency))
+        return MapObjects(t, tuple(views), unresolved)
+
+    def _update(self, name: str, declared: NamedObject, live: dict[str, SeenObject], t: float,
+                truth: Mapping[str, np.ndarray]) -> str:
+        b = self._bindings.setdefault(name, _Binding())
+        if b.object_id is not None and b.object_id in live:
+            self._follow(b, live[b.object_id], t)
+            return ""
+        if b.object_id is not None:  # removed from the map (POCD) or merged into another object
+            b.object_id, b.lost = None, True
+        taken = {x.object_id for x in self._bindings.values() if x.object_id is not None}
+        free = [o for o in live.values() if o.id not in taken]
+        if b.lost:
+            return self._rebind(name, b, free, t)
+        hint = truth.get(name) if declared.position is None else np.asarray(declared.position, float)
+        if hint is None:
+            return f"{name} not yet seen"
+        near = [o for o in free if float(np.linalg.norm(o.position[:2] - hint[:2])) <= self.params.anchor_bind_radius_m]
+        if not near:
+            return f"{name} not yet seen"
+        best = min(near, key=lambda o: float(np.linalg.norm(o.position[:2] - hint[:2])))
+        self._bindings[name] = _Binding(best.id, best.yaw, best.extent.copy(), best.observations, t)
+        return ""
+
+    def _follow(self, b: _Binding, o: SeenObject, t: float) -> None:
+        b.yaw, b.extent = continuous_yaw(o.yaw, b.yaw, o.extent)
+        if o.observations != b.observations or o.observations < 0:
+            b.observations, b.last_seen_t = o.observations, t
+
+    def _rebind(self, name: str, b: _Binding, free: list[SeenObject], t: float) -> str:
+        since = b.last_seen_t - self.params.anchor_candidate_margin_s
+        extent = b.extent if b.extent is not None else np.zeros(3)
+        candidates = [o for o in free if self._first_seen.get(o.id, t) >= since
+                      and same_extent(o.extent, extent, self.gate_m)]
+        if not candidates:
+            return f"{name} not in the map"
+        if len(candidates) > 1:
+            return f"{name}: {len(candidates)} candidates"
+        o = candidates[0]
+        yaw, ext = continuous_yaw(o.yaw, b.yaw, o.extent)
+        self._bindings[name] = _Binding(o.id, yaw, ext, o.observations, t)
+        return ""
+
+
+def map_objects(names: ObjectNames, world_map: WorldMap, sequence: TaskSequence, world: SimWorld | None,
+                t: float) -> MapObjects | None:
+    """What the sequencer sees of the map for `sequence`'s named objects (None when it names none): the object
+    map's live objects, or with the ground-truth map the simulated boxes themselves."""
+    if not sequence.objects:
+        return None
+    truth = None if world is None else {b.id: np.asarray(b.position, float) for b in world.boxes()}
+    return names.view(t, _seen(world_map, world), sequence.objects, truth)
+
+
+def find_object(world_map: WorldMap, world: SimWorld | None, object_id: str) -> SeenObject | None:
+    """The live object `object_id` of the map (with the ground-truth map, the scene box of that id)."""
+    return next((o for o in _seen(world_map, world) if o.id == object_id), None)
+
+
+def _seen(world_map: WorldMap, world: SimWorld | None) -> list[SeenObject]:
+    """The map's live objects; with the ground-truth map, the simulated boxes themselves (ids = box ids)."""
+    if isinstance(world_map, GroundTruthMap) and world is not None:
+        return [SeenObject(b.id, np.asarray(b.position, float), float(b.yaw), np.asarray(b.size, float))
+                for b in world.boxes()]
+    return seen_objects(world_map.snapshot())
+
+
+def name_object(runtime: Runtime, name: str, object_id: str) -> TaskSequence:
+    """`Runtime.name_object`: bind `name` to the live object `object_id` and save it in the sequence."""
+    loop = runtime.closed_loop
+    with loop.using_map() as world_map:
+        obj = find_object(world_map, runtime.world, object_id)
+    if obj is None:
+        raise ValueError(f"no object {object_id!r} in the map")
+    seq = runtime.sequence
+    named = NamedObject(position=(float(obj.position[0]), float(obj.position[1]), float(obj.position[2])),
+                        yaw_deg=math.degrees(obj.yaw))
+    sequence = TaskSequence.model_validate({**seq.model_dump(), "objects": {**seq.model_dump()["objects"],
+                                                                          name: named.model_dump()}})
+    with loop.step_lock:  # the control step reads the names (live mode: another thread)
+        loop.names.name(name, obj, runtime.time)
+    runtime.set_sequence(sequence)
+    return sequence

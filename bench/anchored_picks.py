@@ -1,0 +1,175 @@
+"""Anchored picks against the same picks in world coordinates, on boxes moved between laps.
+
+    python -m bench.anchored_picks [--quick] [--seeds N] [--laps N]
+
+`tasks/examples/anchored_picks.yaml` on its scene: per lap, pick above box_3 and above box_5 (each an EE
+subtask whose stance the base drives to) and drive back to the start. At the start of every lap after the
+first, each pick box moves 0.3–0.5 m in a seeded direction. The robot perceives through the whole sensor
+model (depth noise, dropouts, flying pixels, camera latency, wheel odometry that drifts) into the object map
+(POCD); localization is off (issue 25 adds the figures with it on).
+
+The same sequence runs twice on the same seeds: as authored (anchored on the named boxes) and with every
+pick written in world coordinates where lap 1 had the boxes (what an operator writes today). Each completed
+pick is measured against the simulator's TRUE box: the distance between the hand's true position when the
+pick completes and the anchored pose on the true box then. A pick that times out counts as not completed.
+
+Figures: `anchored_pick_error_m_median`, `anchored_pick_error_m_p95`, `anchored_picks_completed` (and the
+`world_` ones beside them), JSON in `bench/results/anchored_picks.json`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import math
+import platform
+import time
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+
+from app.runtime import Runtime, RuntimeConfig
+from core.sim.scene import load_scene
+from tasks.anchors import ObjectView, anchor_position
+from tasks.schema import Anchor, EEPose, EESubtask, TaskSequence
+from tasks.sequence_file import EXAMPLES_DIR, load_sequence
+from tasks.sequencer import Outcome
+
+EXAMPLE = EXAMPLES_DIR / "anchored_picks.yaml"
+RESULTS = Path(__file__).parent / "results"
+MOVE_M = (0.3, 0.5)
+
+
+def world_frame(sequence: TaskSequence, runtime: Runtime) -> TaskSequence:
+    """The sequence with every anchored pose written in the world where the scene has its box now (lap 1)."""
+    world = runtime.require_world()
+    subtasks = []
+    for sub in sequence.subtasks:
+        goal = sub.goal()
+        if isinstance(sub, EESubtask) and goal.anchor is not None:
+            box = world.box(goal.anchor.object)
+            p = anchor_position(goal.anchor, _view(goal.anchor.object, box))
+            rpy = goal.anchor.rpy_deg
+            world_rpy = None if rpy is None else (rpy[0], rpy[1], rpy[2] + math.degrees(box.yaw))
+            sub = sub.model_copy(update={"target": EEPose(position=(float(p[0]), float(p[1]), float(p[2])),
+                                                          rpy_deg=world_rpy)})
+        subtasks.append(sub)
+    return sequence.model_copy(update={"subtasks": subtasks})
+
+
+def _view(name: str, box) -> ObjectView:
+    return ObjectView("truth", name, np.asarray(box.position, float), float(box.yaw), np.asarray(box.size, float))
+
+
+@dataclass
+class _Trial:
+    """Moves the pick boxes at each lap start after the first; measures each pick when it completes."""
+
+    anchors: dict[int, Anchor]
+    lap_starts: tuple[int, ...]
+    rng: np.random.Generator
+    moved_at: set[int] = field(default_factory=set)
+    errors: list[float] = field(default_factory=list)
+    completed: int = 0
+    last_index: int = 0
+
+    def __call__(self, rt: Runtime) -> None:
+        index = rt.sequencer.index
+        if index != self.last_index:
+            self._measure(rt, self.last_index)
+            self.last_index = index
+        if index in self.lap_starts and index not in self.moved_at:
+            self.moved_at.add(index)
+            for name in sorted({a.object for a in self.anchors.values()}):
+                box = rt.require_world().box(name)
+                angle = self.rng.uniform(0, 2 * math.pi)
+                dist = self.rng.uniform(*MOVE_M)
+                rt.move_box(name, (box.position[0] + dist * math.cos(angle), box.position[1] + dist * math.sin(angle),
+                                   box.position[2]))
+
+    def _measure(self, rt: Runtime, index: int) -> None:
+        anchor = self.anchors.get(index)
+        if anchor is None or rt.sequencer.progress[index].outcome != Outcome.DONE:
+            return
+        backend = rt.backend
+        q = backend.true_state().q if hasattr(backend, "true_state") else rt.state.q  # type: ignore[attr-defined]
+        box = rt.require_world().box(anchor.object)
+        want = anchor_position(anchor, _view(anchor.object, box))
+        self.errors.append(float(np.linalg.norm(rt.robot.ee_pose(q)[:3, 3] - want)))
+        self.completed += 1
+
+
+def run(sequence: TaskSequence, anchors: dict[int, Anchor], lap_starts: tuple[int, ...], seed: int,
+        max_s: float) -> _Trial:
+    scene = load_scene((EXAMPLE.parent / (sequence.scene or "")).resolve())
+    rt = Runtime(RuntimeConfig(map_kind="object", seed=seed), scene=scene, sequence=sequence)
+    trial = _Trial(anchors, lap_starts, np.random.default_rng(seed))
+    rt.run_lockstep(max_s, on_control=trial)
+    trial._measure(rt, trial.last_index)
+    return trial
+
+
+def laps_of(sequence: TaskSequence, laps: int) -> tuple[TaskSequence, tuple[int, ...]]:
+    """The one-lap example repeated `laps` times, and the subtask index at which each later lap starts."""
+    n = len(sequence.subtasks)
+    subtasks = [s.model_copy(update={"name": f"lap {k + 1}: {s.name}"}) for k in range(laps) for s in sequence.subtasks]
+    return sequence.model_copy(update={"subtasks": subtasks}), tuple(k * n for k in range(1, laps))
+
+
+def main(argv: list[str] | None = None) -> dict[str, float]:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--quick", action="store_true", help="one seed, two laps")
+    parser.add_argument("--seeds", type=int, default=None)
+    parser.add_argument("--laps", type=int, default=None)
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.WARNING)
+    seeds = args.seeds or (1 if args.quick else 5)
+    laps = args.laps or (2 if args.quick else 3)
+    authored, lap_starts = laps_of(load_sequence(EXAMPLE), laps)
+    anchors = {i: s.goal().anchor for i, s in enumerate(authored.subtasks)
+               if isinstance(s, EESubtask) and s.goal().anchor is not None}
+    max_s = sum(s.timeout_s for s in authored.subtasks)
+    out: dict[str, list[_Trial]] = {"anchored": [], "world": []}
+    t0 = time.time()
+    for seed in range(seeds):
+        scene_rt = Runtime(RuntimeConfig(map_kind="ground_truth"),
+                           scene=load_scene((EXAMPLE.parent / (authored.scene or "")).resolve()), sequence=authored)
+        world_seq = world_frame(authored, scene_rt)
+        scene_rt.shutdown()
+        out["anchored"].append(run(authored, anchors, lap_starts, seed, max_s))
+        out["world"].append(run(world_seq, anchors, lap_starts, seed, max_s))
+    figures: dict[str, float] = {}
+    for kind, trials in out.items():
+        errors = np.array([e for t in trials for e in t.errors])
+        figures[f"{kind}_pick_error_m_median"] = float(np.median(errors)) if len(errors) else math.nan
+        figures[f"{kind}_pick_error_m_p95"] = float(np.percentile(errors, 95)) if len(errors) else math.nan
+        figures[f"{kind}_picks_completed"] = float(sum(t.completed for t in trials))
+    figures["picks_attempted"] = float(len(anchors) * seeds)
+    units = {k: ("m" if k.endswith("_m_median") or k.endswith("_m_p95") else "picks") for k in figures}
+    result = {"bench": "anchored_picks", "when": datetime.now(UTC).isoformat(timespec="seconds"), "quick": args.quick,
+              "machine": {"cpu": platform.processor() or platform.machine(), "cores": _cores(),
+                          "python": platform.python_version()},
+              "figures": figures, "units": units,
+              "targets": {"anchored_picks_completed": ">= world_picks_completed (localization off)"},
+              "config": {"seeds": seeds, "laps": laps, "move_m": list(MOVE_M), "map": "object",
+                         "sensor": "SimParams.sensor (drifting odometry)", "localization": "off",
+                         "wall_s": round(time.time() - t0, 1)}}
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "anchored_picks.json").write_text(json.dumps(result, indent=2))
+    width = max(map(len, figures))
+    for k, v in figures.items():
+        print(f"{k:<{width}}  {v:.3f} {units[k]}")
+    return figures
+
+
+def _cores() -> int:
+    import os
+
+    return os.cpu_count() or 0
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,121 @@
+"""Anchored targets: poses given on a named mapped object, resolved into the world from what the map sees.
+
+tasks/ reads the map only through `MapObjects`, a narrow typed view that app/ builds every control period
+(app/object_names.py): per object its id, name, centre, yaw, extent, E[v] and status, and for each name that
+has no object now, why ("box_3 not in the map", "box_3: 2 candidates", "box_3 not yet seen"). The yaw is
+continuous since the name was bound (the box fit keeps yaw within ±45°, which would relabel the faces of a
+turning box), and the extent is along the object's own axes at that yaw.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tasks.schema import Anchor, BasePose, BaseSubtask, EEPose, EESubtask, Face
+
+_FACE_AXES: dict[Face, tuple[int, float]] = {"top": (2, 1.0), "front": (0, -1.0), "back": (0, 1.0),
+                                             "left": (1, 1.0), "right": (1, -1.0)}
+"""Face → (axis, side) in the object's frame: front −x, back +x, left +y, right −y, top +z."""
+
+
+@dataclass(frozen=True)
+class ObjectView:
+    """One mapped object as tasks/ sees it: centre `position` (m), `yaw` (rad), full `extent` (m) along its own
+    axes, E[v] `consistency`, `status` ('active')."""
+
+    id: str
+    name: str | None
+    position: np.ndarray
+    yaw: float
+    extent: np.ndarray
+    consistency: float = 1.0
+    status: str = "active"
+
+
+@dataclass(frozen=True)
+class MapObjects:
+    """The objects of the latest map snapshot at time `t`, and why a name has none (`unresolved`)."""
+
+    t: float
+    objects: tuple[ObjectView, ...] = ()
+    unresolved: Mapping[str, str] = field(default_factory=dict)
+
+    def named(self, name: str) -> ObjectView | None:
+        return next((o for o in self.objects if o.name == name and o.status == "active"), None)
+
+    def why_missing(self, name: str) -> str:
+        return self.unresolved.get(name, f"{name} not yet seen")
+
+
+def face_point(face: Face, extent: np.ndarray) -> np.ndarray:
+    """Centre of `face` in the object's frame (m)."""
+    axis, side = _FACE_AXES[face]
+    p = np.zeros(3)
+    p[axis] = side * float(extent[axis]) / 2.0
+    return p
+
+
+def _rot_z(yaw: float) -> np.ndarray:
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def anchor_position(anchor: Anchor, obj: ObjectView) -> np.ndarray:
+    """World position (3,) of the anchored point: object centre + R_z(yaw) (face centre + offset)."""
+    local = face_point(anchor.face, obj.extent) + np.asarray(anchor.offset, float)
+    return np.asarray(obj.position, float) + _rot_z(obj.yaw) @ local
+
+
+def _world_rpy(anchor: Anchor, obj: ObjectView) -> tuple[float, float, float] | None:
+    """rpy (deg, fixed axes) of the anchored rotation in the world: R_z(yaw) R(rpy) only adds yaw."""
+    if anchor.rpy_deg is None:
+        return None
+    r, p, y = anchor.rpy_deg
+    return (r, p, y + math.degrees(obj.yaw))
+
+
+def resolve_pose(pose: BasePose | EEPose, objects: MapObjects | None) -> BasePose | EEPose | str:
+    """The pose in the world (unchanged when not anchored), or why it cannot be placed now."""
+    anchor = pose.anchor
+    if anchor is None:
+        return pose
+    obj = None if objects is None else objects.named(anchor.object)
+    if obj is None:
+        return f"{anchor.object} not yet seen" if objects is None else objects.why_missing(anchor.object)
+    p = anchor_position(anchor, obj)
+    rpy = _world_rpy(anchor, obj)
+    if isinstance(pose, BasePose):
+        return BasePose(x=float(p[0]), y=float(p[1]), yaw_deg=None if rpy is None else rpy[2])
+    return EEPose(position=(float(p[0]), float(p[1]), float(p[2])), rpy_deg=rpy)
+
+
+def resolve_subtask(sub: BaseSubtask | EESubtask,
+                    objects: MapObjects | None) -> tuple[BaseSubtask | EESubtask | None, str]:
+    """The subtask with every anchored pose placed in the world, or (None, why not)."""
+    if not is_anchored(sub):
+        return sub, ""
+    placed = [resolve_pose(p, objects) for p in sub.waypoints]
+    target = None if sub.target is None else resolve_pose(sub.target, objects)
+    why = next((r for r in [*placed, target] if isinstance(r, str)), None)
+    if why is not None:
+        return None, why
+    return sub.model_copy(update={"waypoints": placed, "target": target}), ""
+
+
+def is_anchored(sub: BaseSubtask | EESubtask) -> bool:
+    return any(p.anchor is not None for p in sub.path())
+
+
+def anchor_of(sub: BaseSubtask | EESubtask) -> Anchor | None:
+    """The anchor of the subtask's goal (its target, else last waypoint), None when it is in the world."""
+    return sub.goal().anchor
+
+
+def describe(sub: BaseSubtask | EESubtask) -> str:
+    """'top of box_3' for a subtask whose goal is anchored, '' otherwise (the subtask list shows it)."""
+    anchor = anchor_of(sub)
+    return "" if anchor is None else anchor.describe()

@@ -1,0 +1,36 @@
+"""The studio's names tab on a real runtime and viser server: name a mapped object, author 'Reach its top' /
+'Approach its front' on it, and see the binding (goal frame on the object, a line to it, the list)."""
+
+import viser
+
+from app.runtime import Runtime, RuntimeConfig
+from app.ui.anchor_panel import APPROACH_FRONT, REACH_TOP, AnchorPanel, binding_lines
+from core.sim.scene import Box, Scene
+from tasks.schema import TaskSequence
+from tests.app.conftest import free_port
+
+
+def test_name_an_object_author_on_it_and_see_the_binding():
+    scene = Scene((Box("crate", (2.5, 0.0, 0.3)), Box("far", (0.0, 4.0, 0.3))), robot_start=(0.0, 0.0, 0.0))
+    rt = Runtime(RuntimeConfig(map_kind="ground_truth"), scene=scene, sequence=TaskSequence())
+    server = viser.ViserServer(port=free_port())
+    try:
+        panel = AnchorPanel(server, rt)
+        panel.update(rt.snapshot())
+        assert "crate" in panel.object.options and "/anchors/pick/crate" in str(panel._picks["crate"][1].name)
+        panel.select("crate")  # what a click on its shell does
+        panel.name.value = "box_3"
+        panel.add_anchored("approach", APPROACH_FRONT)
+        panel.add_anchored("reach", REACH_TOP)
+        seq = rt.sequence
+        assert list(seq.objects) == ["box_3"] and seq.objects["box_3"].position == (2.5, 0.0, 0.3)
+        assert [s.name for s in seq.subtasks] == ["approach front of box_3", "reach top of box_3"]
+        rt.run_lockstep(1.0, until_done=False)
+        snap = rt.snapshot()
+        panel.update(snap)
+        assert binding_lines(snap)[0] == "1. approach front of box_3: front of box_3 + (-0.9, 0, 0) → crate"
+        assert snap.progress[0].anchored_goal is not None and abs(snap.progress[0].anchored_goal[0] - 1.3) < 1e-6
+        assert panel._drawn_key is not None and len(panel._drawn) == 3  # name label, goal frame, line
+    finally:
+        server.stop()
+

@@ -1,0 +1,69 @@
+"""Names for mapped objects: bound where they were given, kept through the map's id, re-bound to a unique
+new candidate after removal (else waiting with the reason), faces kept by yaw continuity."""
+
+import math
+
+import numpy as np
+import pytest
+
+from app.object_names import ObjectNames, SeenObject, continuous_yaw
+from tasks.schema import NamedObject
+
+CUBE = np.array([0.6, 0.6, 0.6])
+
+
+def seen(oid: str, x: float, y: float, yaw: float = 0.0, observations: int = 1, extent=CUBE) -> SeenObject:
+    return SeenObject(oid, np.array([x, y, 0.3]), yaw, np.asarray(extent, float), 0.9, observations)
+
+
+def test_a_scene_box_id_binds_where_the_box_is_and_follows_the_maps_id():
+    names = ObjectNames()
+    truth = {"box_3": np.array([2.5, 0.0, 0.3])}
+    view = names.view(0.0, [seen("object_1", 0.0, 3.0), seen("object_2", 2.45, 0.05)], {"box_3": NamedObject()}, truth)
+    assert view.named("box_3").id == "object_2"
+    # the map moved object_2 (registration): the name goes with it, whatever the truth says now
+    view = names.view(0.5, [seen("object_2", 2.7, 0.3, observations=2)], {"box_3": NamedObject()}, {})
+    assert view.named("box_3").position[0] == pytest.approx(2.7)
+
+
+def test_a_declared_name_binds_near_where_it_was_given_or_waits():
+    names = ObjectNames()
+    declared = {"shelf": NamedObject(position=(4.0, 1.0, 0.3))}
+    assert names.view(0.0, [seen("object_1", 2.0, 0.0)], declared).unresolved == {"shelf": "shelf not yet seen"}
+    view = names.view(0.1, [seen("object_1", 2.0, 0.0), seen("object_5", 4.2, 1.1)], declared)
+    assert view.named("shelf").id == "object_5"
+
+
+def test_after_removal_a_name_rebinds_only_to_a_unique_new_candidate():
+    names = ObjectNames()
+    declared = {"box_3": NamedObject(position=(2.5, 0.0, 0.3))}
+    old = [seen("object_1", 2.5, 0.0), seen("object_2", 0.0, 3.0)]
+    names.view(0.0, old, declared)
+    names.view(5.0, [seen("object_1", 2.5, 0.0, observations=9), seen("object_2", 0.0, 3.0)], declared)
+    # removed, nothing new: waits; an old box (object_2) is no candidate, nor a new wall of another size
+    wall = seen("object_7", 5.0, 0.0, extent=[3.0, 0.2, 1.0])
+    view = names.view(6.0, [seen("object_2", 0.0, 3.0), wall], declared)
+    assert view.unresolved == {"box_3": "box_3 not in the map"} and view.named("box_3") is None
+    twins = [seen("object_2", 0.0, 3.0), seen("object_8", 3.5, 0.5), seen("object_9", 3.5, -1.0)]
+    assert names.view(6.5, twins, declared).unresolved == {"box_3": "box_3: 2 candidates"}
+    one = [seen("object_2", 0.0, 3.0), seen("object_8", 3.5, 0.5)]
+    assert names.view(7.0, one, declared).named("box_3").id == "object_8"
+
+
+def test_a_box_found_elsewhere_before_the_old_one_goes_is_a_candidate():
+    names = ObjectNames()
+    declared = {"box_3": NamedObject(position=(2.5, 0.0, 0.3))}
+    names.view(0.0, [seen("object_1", 2.5, 0.0)], declared)
+    names.view(4.0, [seen("object_1", 2.5, 0.0, observations=5)], declared)  # last observed at 4 s
+    names.view(4.5, [seen("object_1", 2.5, 0.0, observations=5), seen("object_4", 2.5, 0.6)], declared)
+    assert names.view(6.0, [seen("object_4", 2.5, 0.6)], declared).named("box_3").id == "object_4"
+
+
+def test_yaw_is_continuous_so_faces_keep_their_labels():
+    yaw, ext = continuous_yaw(-math.radians(40), math.radians(40), np.array([0.6, 0.4, 0.5]))
+    assert math.degrees(yaw) == pytest.approx(50.0) and list(ext) == [0.4, 0.6, 0.5]
+    names = ObjectNames()
+    declared = {"box_3": NamedObject(position=(2.5, 0.0, 0.3))}
+    for k, deg in enumerate([30, 40, -44, -30]):  # the fit wraps from +45° to −45° as the box turns on
+        view = names.view(k * 0.1, [seen("object_1", 2.5, 0.0, math.radians(deg))], declared)
+    assert math.degrees(view.named("box_3").yaw) == pytest.approx(60.0)

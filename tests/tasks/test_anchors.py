@@ -1,0 +1,129 @@
+"""Anchored targets: the schema refuses bad anchors with field and line, poses resolve on their object, and the
+sequencer follows a moving object, waits for a missing one and times out with the reason."""
+
+import math
+
+import numpy as np
+import pytest
+
+from core.robot.model import READY_Q
+from core.types import RobotState
+from core.yaml_validation import FileFormatError
+from tasks.anchors import MapObjects, ObjectView, anchor_position, face_point, resolve_pose
+from tasks.schema import Anchor, BasePose, EEPose, TaskSequence
+from tasks.sequence_file import parse_sequence, sequence_to_yaml
+from tasks.sequencer import Outcome, Sequencer
+
+GOOD = """\
+objects:
+  box_3: {}
+subtasks:
+- name: approach box_3
+  kind: base
+  target: {anchor: {object: box_3, face: front, offset: [-0.9, 0, 0], rpy_deg: [0, 0, 0]}}
+- name: above box_3
+  kind: ee
+  target:
+    anchor: {object: box_3, face: top, offset: [-0.25, 0, 0.7], rpy_deg: [0, 90, 0]}
+  timeout_s: 5
+"""
+
+
+def state_at(x: float, y: float, yaw: float = 0.0) -> RobotState:
+    q = READY_Q.copy()
+    q[:3] = x, y, yaw
+    return RobotState(0.0, q, np.zeros(9))
+
+
+def box(position, yaw=0.0, name="box_3", oid="object_1") -> ObjectView:
+    return ObjectView(oid, name, np.array(position, float), yaw, np.array([0.6, 0.6, 0.6]))
+
+
+def test_anchored_sequence_reads_and_writes_back():
+    seq = parse_sequence(GOOD)
+    assert seq.subtasks[1].target.anchor == Anchor(object="box_3", face="top", offset=(-0.25, 0, 0.7),
+                                                   rpy_deg=(0, 90, 0))
+    text = sequence_to_yaml(seq)
+    assert "position:" not in text and " x:" not in text  # an anchored pose is written as its anchor
+    assert parse_sequence(text) == seq
+    assert TaskSequence.model_validate_json(seq.model_dump_json()) == seq
+
+
+@pytest.mark.parametrize(("bad", "field", "line", "words"), [
+    ("object: box_3, face: top, offset: [-0.25, 0, 0.7]", "subtasks.1.target.anchor.object", 10, "unknown object"),
+    ("object: box_3, face: side", "subtasks.1.target.anchor.face", 10, "'top'"),
+    ("object: box_3, offset: [.nan, 0, 0]", "subtasks.1.target.anchor.offset.0", 10, "finite"),
+    ("object: '3 box', face: top", "subtasks.1.target.anchor.object", 10, "pattern"),
+])
+def test_a_bad_anchor_is_refused_with_its_field_and_line(bad, field, line, words):
+    text = GOOD.replace("object: box_3, face: top, offset: [-0.25, 0, 0.7], rpy_deg: [0, 90, 0]", bad)
+    if "unknown" in words:
+        text = text.replace("box_3: {}", "box_4: {}").replace("box_3, face: front", "box_4, face: front")
+    with pytest.raises(FileFormatError) as err:
+        parse_sequence(text)
+    problems = {(f, ln) for f, ln, _ in err.value.problems}
+    assert (field, line) in problems, err.value
+    assert words in str(err.value)
+
+
+def test_coordinates_beside_an_anchor_are_refused():
+    with pytest.raises(ValueError, match="drop position"):
+        EEPose.model_validate({"position": [1, 2, 3], "anchor": {"object": "box_3"}})
+    with pytest.raises(ValueError, match="drop x"):
+        BasePose.model_validate({"x": 1, "anchor": {"object": "box_3"}})
+    with pytest.raises(ValueError, match="frame: base"):
+        EEPose.model_validate({"frame": "base", "anchor": {"object": "box_3"}})
+    with pytest.raises(ValueError, match="only about z"):
+        BasePose.model_validate({"anchor": {"object": "box_3", "rpy_deg": [10, 0, 0]}})
+
+
+def test_faces_and_the_object_frame():
+    ext = np.array([0.6, 0.4, 0.8])
+    np.testing.assert_allclose(face_point("top", ext), [0, 0, 0.4])
+    np.testing.assert_allclose(face_point("front", ext), [-0.3, 0, 0])
+    np.testing.assert_allclose(face_point("left", ext), [0, 0.2, 0])
+    obj = ObjectView("o", "box_3", np.array([2.0, 1.0, 0.4]), math.pi / 2, ext)
+    # front (−x of the box) of a box turned 90°: toward world −y; the offset turns with it
+    np.testing.assert_allclose(anchor_position(Anchor(object="box_3", face="front", offset=(-0.5, 0, 0)), obj),
+                               [2.0, 1.0 - 0.8, 0.4], atol=1e-12)
+    pose = resolve_pose(EEPose(anchor=Anchor(object="box_3", rpy_deg=(0, 90, 0))), MapObjects(0.0, (obj,)))
+    assert isinstance(pose, EEPose) and pose.rpy_deg == pytest.approx((0, 90, 90))
+    assert resolve_pose(EEPose(anchor=Anchor(object="box_9")), MapObjects(0.0, (obj,))) == "box_9 not yet seen"
+
+
+def test_the_sequencer_follows_the_object_and_waits_when_it_is_gone(robot):
+    seq = parse_sequence(GOOD)
+    s = Sequencer(robot, seq)
+    seen = MapObjects(0.0, (box([2.5, 0.0, 0.3]),))
+    refs = s.update(state_at(0.0, 0.0), np.zeros((0, 3)), 0.0, seen)
+    assert refs is not None and s.progress[0].anchored_goal == pytest.approx((1.3, 0.0, 0.0))
+    assert s.path is not None and np.allclose(s.path[-1], [1.3, 0.0])
+    moved = MapObjects(0.5, (box([2.5, 0.42, 0.3]),))
+    s.update(state_at(0.1, 0.0), np.zeros((0, 3)), 0.5, moved)
+    assert s.take_notices() == ["box_3 moved 0.42 m: target follows"]
+    assert np.allclose(s.path[-1], [1.3, 0.42])  # the A* path was re-made to the new goal
+    s.update(state_at(1.3, 0.42), np.zeros((0, 3)), 1.0, moved)
+    assert s.index == 1  # reached: the EE subtask is next
+    gone = MapObjects(1.1, (), {"box_3": "box_3 not in the map"})
+    refs = s.update(state_at(1.3, 0.42), np.zeros((0, 3)), 1.1, gone)
+    assert refs is not None and refs.order == ("base", "ee")  # hold the base, tuck the hand
+    np.testing.assert_allclose(refs.base.xy, [[1.3, 0.42]] * len(refs.base.xy))
+    assert refs.ee.frame == "base" and np.allclose(refs.ee.position[0], s.ee_offset_base)
+    assert s.progress[1].message == "box_3 not in the map: waiting"
+    assert s.update(state_at(1.3, 0.42), np.zeros((0, 3)), 7.0, gone) is None
+    assert s.progress[1].outcome == Outcome.FAILED
+    assert s.progress[1].message == "timed out after 5 s: box_3 not in the map"
+
+
+def test_validation_checks_an_anchored_target_where_its_object_is(robot):
+    from tasks.validation import Obstacle, RobotEnvelope, Rule, Severity, check_sequence
+
+    env = RobotEnvelope.of(robot, delta_safe_m=0.25)
+    seq = parse_sequence(GOOD.replace("offset: [-0.9, 0, 0]", "offset: [-0.2, 0, 0]"))  # base too near the box
+    here = Obstacle("box_3", (2.5, 0.0, 0.3), (0.6, 0.6, 0.6))
+    found = check_sequence(seq, [here], env, anchors={"box_3": here})
+    assert [(f.field, f.rule) for f in found] == [("subtasks.0.target", Rule.BASE_CLEARANCE)]
+    assert "(2.00, 0.00)" in found[0].message  # checked where the anchor puts it, not at (0, 0)
+    unseen = check_sequence(seq, [], env, anchors={})
+    assert {f.rule for f in unseen} == {Rule.ANCHOR} and all(f.severity == Severity.WARNING for f in unseen)
+    assert "box_3 is not in the map yet" in unseen[0].message
