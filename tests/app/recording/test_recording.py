@@ -33,7 +33,7 @@ from app.runtime import Runtime, RuntimeConfig
 from core.sim.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 
-ROOT = Path(__file__).parents[2]
+ROOT = Path(__file__).parents[3]
 
 
 @pytest.fixture(scope="module")
