@@ -32,6 +32,7 @@ def test_no_path_is_said_skip_goes_on_and_edits_wait_for_the_next_start(page):
         started_t = runtime.time
         page.get_by_role("button", name="Start").click()
         page.get_by_text(re.compile(r"no path to the goal \(4\.00, 0\.00\)")).first.wait_for()
+        said_t = runtime.time  # the page has drawn the run by now, and the monitor with it
         assert np.hypot(*runtime.state.q[:2]) < 0.05  # held
         page.screenshot(path=str(ARTIFACTS / "studio_no_path.png"))
 
@@ -53,8 +54,8 @@ def test_no_path_is_said_skip_goes_on_and_edits_wait_for_the_next_start(page):
         # the monitor remembers the run that ended, with units on its axes
         page.get_by_role("tab", name="Monitor").click()
         page.get_by_text("Task error per level, ‖e‖ at the first node (m, rad)").first.wait_for()
-        assert started_t <= studio.monitor.rows[0][0] < started_t + 3.0  # from the start of the run
-        assert studio.monitor.rows[-1][0] > studio.monitor.rows[0][0] + 3.0
+        assert started_t <= studio.monitor.rows[0][0] <= said_t  # from the start of the run
+        assert studio.monitor.rows[-1][0] > said_t
         plots = (studio.monitor.solve, studio.monitor.errors, studio.monitor.clearance, studio.monitor.consistency)
         for plot in plots:
             assert plot is not None
