@@ -213,8 +213,9 @@ class Sequencer:
         p = self.progress[self.index]
         if p.outcome == Outcome.PENDING:
             return f"ready: {plural(len(self.progress), 'subtask')}, first {p.name}"
-        line = (f"{self.index + 1}/{len(self.progress)} {p.name}: {p.position_error_m:.2f} m, "
-                f"{p.orientation_error_deg:.0f}° after {p.elapsed_s:.1f} s")
+        ori = "" if math.isnan(p.orientation_error_deg) else f", {p.orientation_error_deg:.0f}°"
+        line = (f"{self.index + 1}/{len(self.progress)} {p.name}: {p.position_error_m:.2f} m{ori} "
+                f"after {p.elapsed_s:.1f} s")
         return f"{line}: {p.message}" if p.no_path or p.blocked is not None else line
 
     def skip(self, t: float) -> bool:

@@ -263,6 +263,10 @@ class SubtaskProgressOut(BaseModel):
     position_error_m: float | None
     orientation_error_deg: float | None
     message: str
+    no_path: bool = False
+    """The planner found no path to the goal on the current map: the robot holds (skip with /api/run/skip)."""
+    blocked: bool = False
+    """The base has made no progress for `SequencerParams.stall_s`; `message` names the nearest obstacle."""
 
 
 class ProgressOut(BaseModel):

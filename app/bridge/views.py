@@ -50,7 +50,8 @@ def _subtask_out(p: SubtaskProgress) -> SubtaskProgressOut:
     return SubtaskProgressOut(index=p.index, name=p.name, kind=p.kind, outcome=p.outcome.value,
                               elapsed_s=finite_or_none(p.elapsed_s), held_s=finite_or_none(p.held_s),
                               position_error_m=finite_or_none(p.position_error_m),
-                              orientation_error_deg=finite_or_none(p.orientation_error_deg), message=p.message)
+                              orientation_error_deg=finite_or_none(p.orientation_error_deg), message=p.message,
+                              no_path=p.no_path, blocked=p.blocked is not None)
 
 
 def progress_out(snap: Snapshot) -> ProgressOut:

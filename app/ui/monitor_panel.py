@@ -49,8 +49,8 @@ def _series(labels: list[str]) -> tuple[uplot.Series, ...]:
 
 def _axes(y_label: str) -> tuple[uplot.Axis, uplot.Axis]:
     """Sim time below, `y_label` (with its unit) on the left, wide enough that neither label is clipped."""
-    return (uplot.Axis(label="sim time (s)", size=40, labelSize=18),
-            uplot.Axis(label=y_label, size=60, labelSize=18))
+    return (uplot.Axis(label="sim time (s)", size=44, labelSize=22),
+            uplot.Axis(label=y_label, size=76, labelSize=26, labelGap=2))
 
 
 class RunHistory:

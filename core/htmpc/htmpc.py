@@ -351,7 +351,8 @@ class HTMPC:
             return self._fallback(state, n, step.message if step else "no iteration")
         if self.enforce_timeout and elapsed > p.solve_timeout_ms:
             self.counts.timeouts += 1
-            return self._fallback(state, n, f"solve took {elapsed:.0f} ms > {p.solve_timeout_ms:.0f} ms")
+            digits = 0 if round(elapsed) > round(p.solve_timeout_ms) else 1  # never "250 ms > 250 ms"
+            return self._fallback(state, n, f"solve took {elapsed:.{digits}f} ms > {p.solve_timeout_ms:.0f} ms")
         plan = self._plan(state, order, refs, step, tuple(level_ms),
                           {"sqp_iterations": float(sqp_iterations), "qp_iterations": float(qp_iterations),
                            "hpipm_ms": hpipm_ms})

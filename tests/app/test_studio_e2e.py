@@ -1,11 +1,9 @@
 """The studio end to end in a real headless Chromium: author a two-subtask sequence through the GUI,
 start it, move a box through the UI while the robot runs, and check the runtime (box moved in MuJoCo,
-sequence finished). Screenshots are saved as test artefacts; with UPDATE_README_SCREENSHOT=1 the
-mid-run one also becomes docs/studio.png."""
+sequence finished). Screenshots are saved as test artefacts (the README's docs/studio.png comes from
+test_studio_status_e2e.py, which shows named mapped objects)."""
 
-import os
 import re
-import shutil
 import threading
 import time
 
@@ -17,7 +15,7 @@ from app.runtime.snapshot import RunState
 from app.ui.studio import Studio
 from core.sim.scene import Box, Scene
 from tasks import TaskSequence
-from tests.app.conftest import ARTIFACTS, ROOT, free_port
+from tests.app.conftest import ARTIFACTS, free_port
 
 SCENE = Scene((Box("mover", (1.2, 2.0, 0.3)), Box("side", (2.5, -1.6, 0.3)), Box("far", (5.5, 1.8, 0.3))),
               robot_start=(0.0, 0.0, 0.0))
@@ -89,9 +87,6 @@ def test_author_run_and_move_a_box_in_the_browser(studio, page):
     assert runtime.run_state == RunState.RUNNING
     mid = ARTIFACTS / "studio_midrun.png"
     page.screenshot(path=str(mid))
-    if os.environ.get("UPDATE_README_SCREENSHOT"):
-        (ROOT / "docs").mkdir(exist_ok=True)
-        shutil.copy(mid, ROOT / "docs" / "studio.png")
     page.get_by_role("tab", name="Scene edits").click()
     page.locator("label", has_text="Box").first.locator("xpath=ancestor::p/../..").locator("input").first.click()
     page.get_by_role("option", name="mover").click()
