@@ -22,6 +22,7 @@ import logging
 import math
 import time
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
@@ -101,10 +102,11 @@ def box_surface(b: Box, step_m: float) -> np.ndarray:
 
 
 def run(seed: int, laps: int, localize: bool, share: float = 0.0, distance_m: float = 0.0,
-        oracle: bool = False) -> dict:
+        oracle: bool = False, params: LocalizationParams | None = None) -> dict:
     """One run: the track of poses, the localizer's corrections and the control step's times (`oracle`: the
     localizer registers against the true scene instead of the map)."""
-    config = runtime_config(map_kind="object", seed=seed, localization=LocalizationParams(enabled=localize))
+    params = replace(params or LocalizationParams(), enabled=localize)
+    config = runtime_config(map_kind="object", seed=seed, localization=params)
     first = layouts(SEED, 1)[0]
     rt = Runtime(config, scene=scene(first), sequence=lap_sequence(1))
     if oracle:
