@@ -231,9 +231,8 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
                 {"rows": [r for x in runs for r in x["rows"]], "completed": 0}, laps)["ate_rmse_m"]
             worst = max(worst, pct)
         figures["false_corrections_pct"] = max(worst, figures["false_corrections_pct_0_0"])
-    units = {k: ("m" if k.endswith("_m") or "_m_" in k or k.startswith("ate") or k.startswith("final") else
-                 "ms" if "_ms" in k else "deg" if "deg" in k else "%" if "pct" in k else "s" if "wall_s" in k else "")
-             for k in figures}
+    units = {k: ("ms" if "_ms" in k else "deg" if "_deg" in k else "%" if "pct" in k else "s" if "wall_s" in k
+                 else "m" if k.startswith(("ate", "final", "rpe")) else "") for k in figures}
     targets = {"ate_rmse_m": "<= 0.05", "ate_max_m": "<= 0.15", "registration_ms_p95": "<= 50",
                "false_corrections_pct": "<= 1", "ate_rmse_lap3_m": "<= 1.2 x lap1"}
     write_result(NAME, figures, units, targets, quick=args.quick)
