@@ -22,6 +22,7 @@ import logging
 import math
 import time
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
@@ -101,10 +102,11 @@ def box_surface(b: Box, step_m: float) -> np.ndarray:
 
 
 def run(seed: int, laps: int, localize: bool, share: float = 0.0, distance_m: float = 0.0,
-        oracle: bool = False) -> dict:
+        oracle: bool = False, params: LocalizationParams | None = None) -> dict:
     """One run: the track of poses, the localizer's corrections and the control step's times (`oracle`: the
     localizer registers against the true scene instead of the map)."""
-    config = runtime_config(map_kind="object", seed=seed, localization=LocalizationParams(enabled=localize))
+    params = replace(params or LocalizationParams(), enabled=localize)
+    config = runtime_config(map_kind="object", seed=seed, localization=params)
     first = layouts(SEED, 1)[0]
     rt = Runtime(config, scene=scene(first), sequence=lap_sequence(1))
     if oracle:
@@ -229,9 +231,8 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
                 {"rows": [r for x in runs for r in x["rows"]], "completed": 0}, laps)["ate_rmse_m"]
             worst = max(worst, pct)
         figures["false_corrections_pct"] = max(worst, figures["false_corrections_pct_0_0"])
-    units = {k: ("m" if k.endswith("_m") or "_m_" in k or k.startswith("ate") or k.startswith("final") else
-                 "ms" if "_ms" in k else "deg" if "deg" in k else "%" if "pct" in k else "s" if "wall_s" in k else "")
-             for k in figures}
+    units = {k: ("ms" if "_ms" in k else "deg" if "_deg" in k else "%" if "pct" in k else "s" if "wall_s" in k
+                 else "m" if k.startswith(("ate", "final", "rpe")) else "") for k in figures}
     targets = {"ate_rmse_m": "<= 0.05", "ate_max_m": "<= 0.15", "registration_ms_p95": "<= 50",
                "false_corrections_pct": "<= 1", "ate_rmse_lap3_m": "<= 1.2 x lap1"}
     write_result(NAME, figures, units, targets, quick=args.quick)

@@ -478,11 +478,12 @@ class LocalizationParams:
     """A direction whose information per inlier (Schur complement of the registration's H on x, y, yaw; yaw
     weighed by the points' RMS distance from the base) is below this gets no correction: the floor alone reads
     ~0.5 along every direction of the floor, a single wall ~0.5 along itself and ≥ 100 across."""
-    sigma_xy_m: float = 0.01
-    sigma_yaw_rad: float = 0.003
+    sigma_xy_m: float = 0.03
+    sigma_yaw_rad: float = 0.01
     """Measurement std of a well-constrained direction (never H⁻¹ as it is: it claims cm along directions
     nothing constrains); a direction with information λ < 5 × `degenerate_information` is inflated by
-    √(5 × degenerate_information / λ)."""
+    λ ↦ 5 × degenerate_information / λ in variance. Against the self-built map 3 cm / 0.57° did better than
+    1 cm / 0.17° on E4's lap 1 (docs/decisions.md, "Localization")."""
     min_trusted_points: int = 150
     """Odometry stays alone in charge until this many trusted object surface points (5 cm apart: ~0.4 m² of
     surface) lie within the camera's range of the predicted base."""

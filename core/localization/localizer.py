@@ -131,7 +131,11 @@ class Localizer:
                                    p.radius_min_m, p.radius_max_m))
         result = registration.register(target, source, frame.T_world_camera, radius, p.max_iterations)
         ms = result.ms
-        disagreeing = self._disagreeing(ref, target, source, result)
+        # objects are judged where the pose is best known: at the prediction when it is confident (a moved box
+        # in view can drag the alignment and make a still one look off), else after the alignment
+        confident = radius <= p.radius_min_m + 1e-9
+        judged_at = frame.T_world_camera if confident else result.T_world_camera
+        disagreeing = self._disagreeing(ref, target, source, judged_at)
         if disagreeing is None:
             return self._record(Correction(frame.t, Verdict.INCONSISTENT, registration_ms=ms, reference_ms=ref_ms))
         if disagreeing:
@@ -175,13 +179,12 @@ class Localizer:
         return replace(base, delta=update.delta, dof=update.dof, nis=update.nis, apply_t=apply_t,
                        pose=se2.compose(update.delta, base_pose))
 
-    def _disagreeing(self, ref: Reference, target: registration.Target, source, result: registration.Result
+    def _disagreeing(self, ref: Reference, target: registration.Target, source, T: np.ndarray
                      ) -> tuple[int, ...] | None:
-        """Objects whose frame points sit farther than `disagreement_m` (median) from the reference after
-        alignment; None when most objects judged disagree (then the pose, not the objects, is in doubt)."""
+        """Objects whose frame points, placed by the camera pose T, sit farther than `disagreement_m` (median)
+        from the reference; None when most objects judged disagree (then the pose, not the objects, is in doubt)."""
         p = self.params
         pts = np.asarray(source.points())[:, :3]
-        T = result.T_world_camera
         idx, d = target.nearest(pts @ T[:3, :3].T + T[:3, 3])
         ids = ref.object_ids[np.clip(idx, 0, len(ref.object_ids) - 1)]
         near = (idx >= 0) & (d < p.radius_max_m) & (ids != FLOOR_ID)
