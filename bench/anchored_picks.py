@@ -14,7 +14,13 @@ pick is measured against the simulator's TRUE box: the distance between the hand
 pick completes and the anchored pose on the true box then. A pick that times out counts as not completed.
 
 Figures: `anchored_pick_error_m_median`, `anchored_pick_error_m_p95`, `anchored_picks_completed` (and the
-`world_` ones beside them), JSON in `bench/results/anchored_picks.json`.
+`world_` ones beside them), JSON in `bench/results/anchored_picks.json`. Target with localization off:
+anchored ≥ world-frame. A failed subtask stops the sequence (as in a run), so later picks count as not
+completed.
+
+Localization on (issue 25, not in yet): each variant runs a second time with the pose estimate corrected
+by registration; its figures go beside these with the suffix `_localized` (target: every anchored pick
+completed, 15/15 over 3 laps), from `run(..., localization=True)` once `RuntimeConfig` can switch it on.
 """
 
 from __future__ import annotations
