@@ -28,7 +28,7 @@ from tasks.references import (
     path_arclength,
     project_on_path,
 )
-from tasks.schema import Anchor, BasePose, BaseSubtask, EESubtask, TaskSequence
+from tasks.schema import BasePose, BaseSubtask, EESubtask, TaskSequence
 
 log = logging.getLogger(__name__)
 
@@ -84,11 +84,18 @@ class SubtaskProgress:
     """Set while the base makes no progress (`SequencerParams.stall_s`); cleared when it moves on."""
     no_path: bool = False
     """The planner found no path to the goal (or a waypoint) on the current map: the base holds."""
-    anchor: Anchor | None = None
-    """The anchor of the subtask's goal (None: a world or base-frame goal)."""
+    anchor_object: str | None = None
+    """The object the subtask's goal is anchored on (None: a world or base-frame goal)."""
+    anchor_label: str = ""
+    """Where on it, for the operator: 'top of box_3'."""
     anchored_goal: tuple[float, float, float] | None = None
     """Where an anchored goal is now in the world (the studio joins it to its object); None when not anchored
     or not placed (waiting)."""
+
+
+def _anchor_object(sub: BaseSubtask | EESubtask) -> str | None:
+    anchor = anchor_of(sub)
+    return None if anchor is None else anchor.object
 
 
 def _angle_between(R_a: np.ndarray, R_b: np.ndarray) -> float:
@@ -146,7 +153,8 @@ class Sequencer:
         """Back to the first subtask, nothing done."""
         self.index = 0
         self.progress = [SubtaskProgress(i, s.name or describe(s) or f"{s.kind} {i + 1}", s.kind,
-                                         timeout_s=s.timeout_s, anchor=anchor_of(s))
+                                         timeout_s=s.timeout_s, anchor_object=_anchor_object(s),
+                                         anchor_label=describe(s))
                          for i, s in enumerate(self.sequence.subtasks)]
         self._started_t: float | None = None
         self._held_since: float | None = None

@@ -48,14 +48,14 @@ def binding_lines(snap: Snapshot) -> list[str]:
     lines = []
     anchors = snap.anchors
     for p in snap.progress:
-        anchor = p.anchor
-        if anchor is None:
+        name = p.anchor_object
+        if name is None:
             continue
-        obj = None if anchors is None else anchors.named(anchor.object)
+        obj = None if anchors is None else anchors.named(name)
         where = f" → {obj.id}" if obj is not None else ""
         if anchors is not None and obj is None:
-            where = f" ({anchors.why_missing(anchor.object)})"
-        lines.append(f"{p.index + 1}. {p.name}: {anchor.describe()}{where}")
+            where = f" ({anchors.why_missing(name)})"
+        lines.append(f"{p.index + 1}. {p.name}: {p.anchor_label}{where}")
     return lines
 
 
@@ -159,7 +159,7 @@ class AnchorPanel:
         named = [] if anchors is None else [o for o in anchors.objects if o.name]
         goals = []
         for p in snap.progress:
-            obj = None if anchors is None or p.anchor is None else anchors.named(p.anchor.object)
+            obj = None if anchors is None or p.anchor_object is None else anchors.named(p.anchor_object)
             if obj is not None and p.anchored_goal is not None:
                 goals.append((p.index, np.array(p.anchored_goal), obj.position, obj.yaw))
         key = (tuple((o.name, tuple(np.round(o.position, 2))) for o in named),

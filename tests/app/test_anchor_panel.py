@@ -34,3 +34,16 @@ def test_name_an_object_author_on_it_and_see_the_binding():
     finally:
         server.stop()
 
+
+
+def test_anchored_progress_survives_a_recording():
+    import json
+
+    from app.recording.topics import snapshot_from_messages, snapshot_messages
+    from tasks.sequence_file import parse_sequence
+
+    seq = parse_sequence("objects: {box_3: {}}\nsubtasks:\n- kind: ee\n  target: {anchor: {object: box_3}}\n")
+    rt = Runtime(RuntimeConfig(map_kind="ground_truth"), scene=Scene((Box("box_3", (2.5, 0.0, 0.3)),)), sequence=seq)
+    messages = dict(snapshot_messages(rt.snapshot(), with_points=False))
+    back = snapshot_from_messages(json.loads(json.dumps(messages)))
+    assert back.progress[0].anchor_object == "box_3" and back.progress[0].anchor_label == "top of box_3"
