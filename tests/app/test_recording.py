@@ -252,6 +252,10 @@ def test_a_torn_tail_is_repaired_for_indexed_readers(recorded, tmp_path, capsys)
     assert statuses == len(streamed) == len(again) > 5
     assert [s.seq for s in again] == [s.seq for s in streamed]
     assert "nothing to repair" in repair(cut)
+    other = tmp_path / "notes.mcap"
+    other.write_text("not a recording")
+    assert main(["recording", "repair", str(other)]) == 2 and "not an MCAP file" in capsys.readouterr().err
+    assert other.read_text() == "not a recording"
 
 
 def test_an_older_recording_is_refused_with_a_message(tmp_path) -> None:
