@@ -166,13 +166,20 @@ _LINK_RGB = (150, 160, 175)
 _BASE_RGB = ((45, 45, 50), (60, 60, 66))
 
 
+Z_UP_TO_GLTF = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, -1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+"""(x, y, z) → (x, z, −y): glTF is y-up, and Foxglove turns every glTF model +90° about x into its z-up frames."""
+
+
 @cache
 def link_glb(link: str) -> bytes:
-    """A UR10 link's collision mesh (what the studio draws) as binary glTF, for ModelPrimitive's `data`."""
+    """A UR10 link's collision mesh (what the studio draws) as binary glTF (y-up, as glTF wants: Foxglove
+    draws it in the link's frame), for ModelPrimitive's `data`."""
     loaded = trimesh.load(ur10_mesh(link, "collision"))
     mesh = loaded.to_geometry() if isinstance(loaded, trimesh.Scene) else loaded
     if not isinstance(mesh, trimesh.Trimesh):
         raise TypeError(f"{ur10_mesh(link, 'collision')} holds no triangle mesh")
+    mesh = mesh.copy()
+    mesh.apply_transform(Z_UP_TO_GLTF)
     mesh.visual = trimesh.visual.ColorVisuals(mesh, face_colors=(*_LINK_RGB, 255))
     data = mesh.export(file_type="glb")
     if not isinstance(data, bytes):
