@@ -138,10 +138,10 @@ def _scene(entities: list[SceneEntity]) -> bytes:
 # --- transforms -------------------------------------------------------------------------------------------
 
 
-def transforms(robot: RobotModel, snap: Snapshot) -> bytes:
+def transforms(robot: RobotModel, snap: Snapshot, t_s: float | None = None) -> bytes:
     """world → base from q[0:3], base → every arm link and camera from FK, world → each extra base pose."""
     q = np.asarray(snap.state.q, float)
-    stamp = timestamp(snap.state.t)
+    stamp = timestamp(snap.state.t if t_s is None else t_s)
     names = (*ARM_LINKS, *CAMERA_FRAMES)
     poses = robot.frame_poses(q, names)
     T_base_world = np.linalg.inv(_planar(q[0], q[1], q[2]))
@@ -297,21 +297,23 @@ def point_cloud(t_s: float, points: np.ndarray) -> bytes:
                       fields=_XYZ, data=data.tobytes()).encode()
 
 
-def depth_image(frame: DepthFrame) -> bytes:
+def depth_image(frame: DepthFrame, t_s: float | None = None) -> bytes:
     """A depth frame as a raw image: float32 metres, 0 = no return, in the camera's frame."""
     depth = np.ascontiguousarray(frame.depth, dtype="<f4")
-    return RawImage(timestamp=timestamp(frame.t), frame_id=f"camera_{frame.camera}", width=depth.shape[1],
-                    height=depth.shape[0], encoding="32FC1", step=4 * depth.shape[1], data=depth.tobytes()).encode()
+    return RawImage(timestamp=timestamp(frame.t if t_s is None else t_s), frame_id=f"camera_{frame.camera}",
+                    width=depth.shape[1], height=depth.shape[0], encoding="32FC1", step=4 * depth.shape[1],
+                    data=depth.tobytes()).encode()
 
 
 # --- one snapshot -----------------------------------------------------------------------------------------
 
 
-def scene_messages(robot: RobotModel, snap: Snapshot, with_points: bool, with_model: bool,
+def scene_messages(robot: RobotModel, snap: Snapshot, with_points: bool, with_model: bool, t_s: float | None = None,
                    theta_stat: float = MappingParams().theta_stat) -> list[tuple[str, bytes]]:
-    """The (topic, protobuf bytes) of one snapshot's Foxglove channels (`PROTOBUF_TOPICS`)."""
-    t = snap.state.t
-    out = [("/tf", transforms(robot, snap))]
+    """The (topic, protobuf bytes) of one snapshot's Foxglove channels (`PROTOBUF_TOPICS`), stamped `t_s`: the
+    clock of the log times (wall clock live, whose simulation time pauses and resets), else simulation time."""
+    t = snap.state.t if t_s is None else t_s
+    out = [("/tf", transforms(robot, snap, t))]
     if with_model:
         out.append(("/robot/model", robot_model(robot, t)))
     out.append(("/scene/boxes", boxes(t, snap.boxes)))

@@ -94,9 +94,13 @@ def test_every_message_decodes_with_the_schema_in_the_file(recorded) -> None:
 def test_log_times_are_simulation_time(recorded) -> None:
     """A lockstep run plays in Foxglove at its simulated pace: each message's log time is its snapshot's t."""
     path, _ = recorded
-    status = [(body["t"], log_time) for topic, _, body, log_time in _decoded(path) if topic == "/run/status"]
+    messages = _decoded(path)
+    status = [(body["t"], log_time) for topic, _, body, log_time in messages if topic == "/run/status"]
     assert status[-1][0] > 2.5
     assert all(log_time == int(t * 1e9) for t, log_time in status)
+    stamps = [(body.transforms[0].timestamp, log_time) for topic, _, body, log_time in messages  # type: ignore[attr-defined]
+              if topic == "/tf"]
+    assert all(abs(s.seconds * 10**9 + s.nanos - log_time) <= 1 for s, log_time in stamps), "stamped as logged"
 
 
 def test_the_3d_channels_draw_the_robot_boxes_objects_and_paths(recorded) -> None:
