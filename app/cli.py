@@ -177,7 +177,7 @@ def _foxglove(args, runtime):
         return None
     from app.foxglove_access import serve_foxglove
 
-    live = serve_foxglove(args.host, args.foxglove, require_token=args.backend == "bridge")
+    live = serve_foxglove(args.host, args.foxglove, require_token=args.backend == "bridge", robot=runtime.robot)
     runtime.subscribe(live)
     print(f"Foxglove: open a Foxglove WebSocket connection to {live.url} (layout: docs/foxglove_layout.json)",
           flush=True)
