@@ -106,10 +106,6 @@ def _pose(position: Iterable[float], quaternion: Iterable[float] | None = None) 
     return Pose(position=_vec(position), orientation=_quat(quaternion))
 
 
-def _pose_of(T: np.ndarray) -> Pose:
-    return _pose(T[:3, 3], Rotation.from_matrix(T[:3, :3]).as_quat())
-
-
 def _color(rgb: Iterable[float], a: float = 1.0) -> Color:
     r, g, b = (float(c) / 255.0 for c in rgb)
     return Color(r=r, g=g, b=b, a=a)
@@ -221,16 +217,17 @@ def mapped_objects(t_s: float, object_map: ObjectMapSnapshot, theta_stat: float)
     """Each mapped object as a box coloured by its consistency E[v] with a label `id E[v]`."""
     stamp = timestamp(t_s)
     entities = []
-    for o in object_map.objects:
+    poses = np.array([np.asarray(o.pose, float) for o in object_map.objects]).reshape(-1, 4, 4)
+    quaternions = Rotation.from_matrix(poses[:, :3, :3]).as_quat() if len(poses) else poses
+    for o, pose, quaternion in zip(object_map.objects, poses, quaternions, strict=True):
         e_v = float(o.consistency)
         removed = o.status != ObjectStatus.ACTIVE
         rgb = _REMOVED_RGB if removed or not math.isfinite(e_v) else consistency_rgb(e_v, theta_stat)
-        pose = np.asarray(o.pose, float)
         top = pose[:3, 3] + (0.0, 0.0, float(np.asarray(o.extent, float)[2]) / 2 + 0.15)
         entities.append(SceneEntity(
             timestamp=stamp, frame_id=WORLD, id=f"object/{o.id}",
             metadata=[KeyValuePair(key="E[v]", value=f"{e_v:.3f}"), KeyValuePair(key="status", value=o.status.value)],
-            cubes=[CubePrimitive(pose=_pose_of(pose), size=_vec(o.extent), color=_color(rgb, 0.5))],
+            cubes=[CubePrimitive(pose=_pose(pose[:3, 3], quaternion), size=_vec(o.extent), color=_color(rgb, 0.5))],
             texts=[TextPrimitive(pose=_pose(top), billboard=True, font_size=14.0, scale_invariant=True,
                                  color=_color(rgb), text=f"{o.id} E[v]={e_v:.2f}")]))
     return _scene(entities)
