@@ -122,13 +122,13 @@ def _scene_for(args) -> Path:
     return DEFAULT_SCENE
 
 
-def _recorder(args, sim_time: bool = False) -> Recorder | None:
+def _recorder(args, robot, sim_time: bool = False) -> Recorder | None:
     """The MCAP recorder that --record asks for, else None; `sim_time`: log times in simulation time."""
     if not args.record:
         return None
     from app.recording import Recorder
 
-    return Recorder(args.record, depth_frames=args.record_depth, sim_time=sim_time)
+    return Recorder(args.record, depth_frames=args.record_depth, sim_time=sim_time, robot=robot)
 def _config(args, **extra) -> RuntimeConfig:
     """The runtime's configuration: scene, sequence, map, constraint and the tunables of --params."""
     from core.params_file import Tunables, load_params
@@ -182,7 +182,7 @@ def serve(args) -> int:
     if bridge is not None:
         bridge.attach(runtime)
     studio = Studio(runtime, host=args.host, port=args.port, require_token=bridge is not None)
-    recorder = _recorder(args)
+    recorder = _recorder(args, runtime.robot)
     if recorder is not None:
         runtime.subscribe(recorder)
     live = _foxglove(args, runtime)
@@ -206,7 +206,7 @@ def _foxglove(args, runtime):
         return None
     from app.foxglove_access import serve_foxglove
 
-    live = serve_foxglove(args.host, args.foxglove, require_token=args.backend == "bridge")
+    live = serve_foxglove(args.host, args.foxglove, require_token=args.backend == "bridge", robot=runtime.robot)
     runtime.subscribe(live)
     print(f"Foxglove: open a Foxglove WebSocket connection to {live.url} (layout: docs/foxglove_layout.json)",
           flush=True)
@@ -228,7 +228,7 @@ def run_headless(args) -> int:
     config = _config(args, perception_delay_s=args.perception_delay, actuation_delay_s=args.actuation_delay)
     runtime = Runtime(config)
     _check_targets(runtime, args)
-    recorder = _recorder(args, sim_time=True)
+    recorder = _recorder(args, runtime.robot, sim_time=True)
     if recorder is not None:
         runtime.subscribe(recorder)
     from rich.progress import Progress

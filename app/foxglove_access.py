@@ -24,6 +24,7 @@ from websockets.http11 import Request, Response
 from app.foxglove_live import FoxgloveLive
 from app.runtime.snapshot import Snapshot
 from app.ui.access import is_loopback
+from core.robot.model import RobotModel
 
 SUBPROTOCOL = "foxglove.sdk.v1"
 """The Foxglove WebSocket subprotocol the SDK 0.30 server speaks."""
@@ -95,8 +96,8 @@ class TokenGate:
 class GatedFoxglove:
     """A `FoxgloveLive` on 127.0.0.1 behind a `TokenGate` on the asked address (same subscriber interface)."""
 
-    def __init__(self, host: str, port: int) -> None:
-        self.live = FoxgloveLive("127.0.0.1", 0)
+    def __init__(self, host: str, port: int, robot: RobotModel | None = None) -> None:
+        self.live = FoxgloveLive("127.0.0.1", 0, robot=robot)
         self.gate = TokenGate(host, port, self.live.url, secrets.token_urlsafe(24))
         self.host = host
 
@@ -112,8 +113,9 @@ class GatedFoxglove:
         self.live.close()
 
 
-def serve_foxglove(host: str, port: int, require_token: bool = False) -> FoxgloveLive | GatedFoxglove:
+def serve_foxglove(host: str, port: int, require_token: bool = False,
+                   robot: RobotModel | None = None) -> FoxgloveLive | GatedFoxglove:
     """The live server on `host:port`: open on loopback, behind the token gate elsewhere or when asked."""
     if is_loopback(host) and not require_token:
-        return FoxgloveLive(host, port)
-    return GatedFoxglove(host, port)
+        return FoxgloveLive(host, port, robot=robot)
+    return GatedFoxglove(host, port, robot=robot)

@@ -98,14 +98,14 @@ class FoxgloveLive:
         if with_model:
             self._model_wall = snap.wall_time
         for topic, data in foxglove_scene.scene_messages(self.robot, snap, self.count % self.points_every == 0,
-                                                         with_model):
+                                                         with_model, t_s=snap.wall_time):
             self._channel(topic, foxglove_scene.PROTOBUF_TOPICS[topic]).log(data, log_time=log_time)
         for frame in snap.depth_frames:
             if self._depth_t.get(frame.camera) == frame.t:
                 continue
             self._depth_t[frame.camera] = frame.t
             self._channel(foxglove_scene.depth_topic(frame.camera), "foxglove.RawImage").log(
-                foxglove_scene.depth_image(frame), log_time=log_time)
+                foxglove_scene.depth_image(frame, snap.wall_time), log_time=log_time)
         for topic, message in snapshot_messages(snap):
             data = json.dumps(message, allow_nan=False, separators=(",", ":")).encode()
             self._channel(topic, FIXED_TOPICS[topic]).log(data, log_time=log_time)

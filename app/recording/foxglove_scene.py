@@ -106,10 +106,6 @@ def _pose(position: Iterable[float], quaternion: Iterable[float] | None = None) 
     return Pose(position=_vec(position), orientation=_quat(quaternion))
 
 
-def _pose_of(T: np.ndarray) -> Pose:
-    return _pose(T[:3, 3], Rotation.from_matrix(T[:3, :3]).as_quat())
-
-
 def _color(rgb: Iterable[float], a: float = 1.0) -> Color:
     r, g, b = (float(c) / 255.0 for c in rgb)
     return Color(r=r, g=g, b=b, a=a)
@@ -138,10 +134,10 @@ def _scene(entities: list[SceneEntity]) -> bytes:
 # --- transforms -------------------------------------------------------------------------------------------
 
 
-def transforms(robot: RobotModel, snap: Snapshot) -> bytes:
+def transforms(robot: RobotModel, snap: Snapshot, t_s: float | None = None) -> bytes:
     """world → base from q[0:3], base → every arm link and camera from FK, world → each extra base pose."""
     q = np.asarray(snap.state.q, float)
-    stamp = timestamp(snap.state.t)
+    stamp = timestamp(snap.state.t if t_s is None else t_s)
     names = (*ARM_LINKS, *CAMERA_FRAMES)
     poses = robot.frame_poses(q, names)
     T_base_world = np.linalg.inv(_planar(q[0], q[1], q[2]))
@@ -166,13 +162,20 @@ _LINK_RGB = (150, 160, 175)
 _BASE_RGB = ((45, 45, 50), (60, 60, 66))
 
 
+Z_UP_TO_GLTF = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, -1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+"""(x, y, z) → (x, z, −y): glTF is y-up, and Foxglove turns every glTF model +90° about x into its z-up frames."""
+
+
 @cache
 def link_glb(link: str) -> bytes:
-    """A UR10 link's collision mesh (what the studio draws) as binary glTF, for ModelPrimitive's `data`."""
+    """A UR10 link's collision mesh (what the studio draws) as binary glTF (y-up, as glTF wants: Foxglove
+    draws it in the link's frame), for ModelPrimitive's `data`."""
     loaded = trimesh.load(ur10_mesh(link, "collision"))
     mesh = loaded.to_geometry() if isinstance(loaded, trimesh.Scene) else loaded
     if not isinstance(mesh, trimesh.Trimesh):
         raise TypeError(f"{ur10_mesh(link, 'collision')} holds no triangle mesh")
+    mesh = mesh.copy()
+    mesh.apply_transform(Z_UP_TO_GLTF)
     mesh.visual = trimesh.visual.ColorVisuals(mesh, face_colors=(*_LINK_RGB, 255))
     data = mesh.export(file_type="glb")
     if not isinstance(data, bytes):
@@ -214,16 +217,17 @@ def mapped_objects(t_s: float, object_map: ObjectMapSnapshot, theta_stat: float)
     """Each mapped object as a box coloured by its consistency E[v] with a label `id E[v]`."""
     stamp = timestamp(t_s)
     entities = []
-    for o in object_map.objects:
+    poses = np.array([np.asarray(o.pose, float) for o in object_map.objects]).reshape(-1, 4, 4)
+    quaternions = Rotation.from_matrix(poses[:, :3, :3]).as_quat() if len(poses) else poses
+    for o, pose, quaternion in zip(object_map.objects, poses, quaternions, strict=True):
         e_v = float(o.consistency)
         removed = o.status != ObjectStatus.ACTIVE
         rgb = _REMOVED_RGB if removed or not math.isfinite(e_v) else consistency_rgb(e_v, theta_stat)
-        pose = np.asarray(o.pose, float)
         top = pose[:3, 3] + (0.0, 0.0, float(np.asarray(o.extent, float)[2]) / 2 + 0.15)
         entities.append(SceneEntity(
             timestamp=stamp, frame_id=WORLD, id=f"object/{o.id}",
             metadata=[KeyValuePair(key="E[v]", value=f"{e_v:.3f}"), KeyValuePair(key="status", value=o.status.value)],
-            cubes=[CubePrimitive(pose=_pose_of(pose), size=_vec(o.extent), color=_color(rgb, 0.5))],
+            cubes=[CubePrimitive(pose=_pose(pose[:3, 3], quaternion), size=_vec(o.extent), color=_color(rgb, 0.5))],
             texts=[TextPrimitive(pose=_pose(top), billboard=True, font_size=14.0, scale_invariant=True,
                                  color=_color(rgb), text=f"{o.id} E[v]={e_v:.2f}")]))
     return _scene(entities)
@@ -290,21 +294,23 @@ def point_cloud(t_s: float, points: np.ndarray) -> bytes:
                       fields=_XYZ, data=data.tobytes()).encode()
 
 
-def depth_image(frame: DepthFrame) -> bytes:
+def depth_image(frame: DepthFrame, t_s: float | None = None) -> bytes:
     """A depth frame as a raw image: float32 metres, 0 = no return, in the camera's frame."""
     depth = np.ascontiguousarray(frame.depth, dtype="<f4")
-    return RawImage(timestamp=timestamp(frame.t), frame_id=f"camera_{frame.camera}", width=depth.shape[1],
-                    height=depth.shape[0], encoding="32FC1", step=4 * depth.shape[1], data=depth.tobytes()).encode()
+    return RawImage(timestamp=timestamp(frame.t if t_s is None else t_s), frame_id=f"camera_{frame.camera}",
+                    width=depth.shape[1], height=depth.shape[0], encoding="32FC1", step=4 * depth.shape[1],
+                    data=depth.tobytes()).encode()
 
 
 # --- one snapshot -----------------------------------------------------------------------------------------
 
 
-def scene_messages(robot: RobotModel, snap: Snapshot, with_points: bool, with_model: bool,
+def scene_messages(robot: RobotModel, snap: Snapshot, with_points: bool, with_model: bool, t_s: float | None = None,
                    theta_stat: float = MappingParams().theta_stat) -> list[tuple[str, bytes]]:
-    """The (topic, protobuf bytes) of one snapshot's Foxglove channels (`PROTOBUF_TOPICS`)."""
-    t = snap.state.t
-    out = [("/tf", transforms(robot, snap))]
+    """The (topic, protobuf bytes) of one snapshot's Foxglove channels (`PROTOBUF_TOPICS`), stamped `t_s`: the
+    clock of the log times (wall clock live, whose simulation time pauses and resets), else simulation time."""
+    t = snap.state.t if t_s is None else t_s
+    out = [("/tf", transforms(robot, snap, t))]
     if with_model:
         out.append(("/robot/model", robot_model(robot, t)))
     out.append(("/scene/boxes", boxes(t, snap.boxes)))

@@ -168,8 +168,9 @@ class Recorder:
         with_model = self._model_t is None or not 0.0 <= t - self._model_t < self.model_every_s
         if with_model:
             self._model_t = t
+        stamp = None if self.sim_time else snap.wall_time
         scene = foxglove_scene.scene_messages(self.robot, snap, with_points=self.count % self.points_every == 0,
-                                              with_model=with_model)
+                                              with_model=with_model, t_s=stamp)
         out = [(topic, foxglove_scene.PROTOBUF_TOPICS[topic], data) for topic, data in scene]
         topics = dict(FIXED_TOPICS)
         json_messages = snapshot_messages(snap)
@@ -178,7 +179,7 @@ class Recorder:
                 if self._last_depth_t.get(frame.camera) != frame.t:
                     self._last_depth_t[frame.camera] = frame.t
                     out.append((foxglove_scene.depth_topic(frame.camera), "foxglove.RawImage",
-                                foxglove_scene.depth_image(frame)))
+                                foxglove_scene.depth_image(frame, stamp)))
                     json_messages[:0] = depth_messages(frame)
                     topics.update(depth_topics(frame.camera))
         out += [(topic, topics[topic], json.dumps(message, allow_nan=False, separators=(",", ":")).encode())

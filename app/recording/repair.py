@@ -16,7 +16,7 @@ from pathlib import Path
 from mcap.exceptions import McapError
 from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
-from mcap.writer import CompressionType, Writer
+from mcap.writer import MCAP0_MAGIC, CompressionType, Writer
 
 from core.atomic_file import fsync_dir
 
@@ -40,6 +40,9 @@ def _records(f):
 def repair(path: Path) -> str:
     """Rewrite `path` with a summary if its tail is torn; returns one line saying what was done."""
     path = Path(path)
+    with open(path, "rb") as f:
+        if f.read(len(MCAP0_MAGIC)) != MCAP0_MAGIC:
+            raise ValueError(f"{path} is not an MCAP file; left as it is")
     temp = path.with_name(path.name + ".repairing")
     kept = 0
     with open(path, "rb") as f, open(temp, "wb") as out:

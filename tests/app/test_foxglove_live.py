@@ -34,6 +34,8 @@ async def _first_messages(url: str, topics: tuple[str, ...], timeout_s: float) -
         channels: dict[int, dict] = {}
         while not all(any(c["topic"] == t for c in channels.values()) for t in topics):
             message = json.loads(await asyncio.wait_for(ws.recv(), timeout_s))
+            if message["op"] == "serverInfo":
+                assert message["capabilities"] == [], "data only: no publishing, parameters or services"
             if message["op"] == "advertise":
                 channels.update({c["id"]: c for c in message["channels"]})
         by_topic = {c["topic"]: c for c in channels.values()}

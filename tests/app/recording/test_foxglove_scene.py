@@ -48,3 +48,22 @@ def test_targets_are_drawn_in_their_frame() -> None:
     drive = next(e for e in update.entities if e.texts and e.texts[0].text == "drive")
     assert drive.arrows[0].pose.orientation.z == np.sin(np.pi / 4)
     assert update.deletions[0].type == 1  # all of the topic's entities first: each message is the whole picture
+
+
+def test_link_meshes_are_y_up_gltf_so_foxglove_draws_them_in_the_link_frame() -> None:
+    """Foxglove turns a glTF model +90° about x (glTF is y-up, its scene z-up): the embedded mesh is the link's
+    STL with (x, y, z) → (x, z, −y), so that turn puts every vertex back where the URDF has it."""
+    import json
+    import struct
+
+    import trimesh
+
+    from app.recording.foxglove_scene import link_glb
+    from core.robot.ur10_assets import ur10_mesh
+
+    glb = link_glb("upper_arm_link")
+    header = struct.unpack_from("<I", glb, 12)[0]
+    accessor = next(a for a in json.loads(glb[20:20 + header])["accessors"] if a["type"] == "VEC3")
+    lo, hi = trimesh.load(ur10_mesh("upper_arm_link", "collision")).bounds
+    turned = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]]) @ np.array([accessor["min"], accessor["max"]]).T
+    np.testing.assert_allclose(np.sort(turned, axis=1), np.column_stack([lo, hi]), atol=1e-5)  # Rx(+90°) undoes it
