@@ -156,3 +156,125 @@ def local_edf(grid: EDFGrid, occupied: np.ndarray, cutoff: float) -> LocalEDF:
     values = signed_distance(occupied, grid.voxel, cutoff)
     return LocalEDF(origin=grid.window_origin, voxel=grid.voxel, values=np.ascontiguousarray(values[grid.window]),
                     cutoff=cutoff)
+
+
+# --- exact distances near seen surfaces (docs/decisions.md, "Mapped surfaces where they are") ----------
+
+
+def window_axes(grid: EDFGrid) -> list[np.ndarray]:
+    """Coordinates of the window's nodes along x, y and z."""
+    return [grid.origin[a] + grid.voxel * np.arange(s.start, s.stop) for a, s in enumerate(grid.window)]
+
+
+def box_field(axes: list[np.ndarray], boxes: Iterable[tuple[np.ndarray, np.ndarray]], cutoff: float) -> np.ndarray:
+    """Exact signed distance (m) at the nodes of `axes` to the nearest upright box (pose 4×4, yaw about z only;
+    full extent 3), truncated at ±cutoff: min over boxes of the analytic box distance, negative inside.
+
+    Separable: the footprint terms are (nx, ny), the height term (nz), so a box costs a few passes over the
+    grid instead of a distance transform; no node rounding, so a face's distance is right to the millimetre.
+    """
+    xs, ys, zs = axes
+    out = np.full((len(xs), len(ys), len(zs)), cutoff)
+    for pose, extent in boxes:
+        half = np.asarray(extent, float) / 2
+        c, s, t = pose[0, 0], pose[1, 0], pose[:3, 3]
+        dx, dy = xs[:, None] - t[0], ys[None, :] - t[1]
+        qx, qy = np.abs(c * dx + s * dy) - half[0], np.abs(-s * dx + c * dy) - half[1]
+        qz = np.abs(zs - t[2]) - half[2]
+        flat = np.maximum(qx, 0.0) ** 2 + np.maximum(qy, 0.0) ** 2
+        if np.sqrt(flat.min()) >= cutoff:
+            continue
+        outside = np.sqrt(flat[:, :, None] + (np.maximum(qz, 0.0) ** 2)[None, None, :])
+        inside = np.minimum(np.maximum(np.maximum(qx, qy)[:, :, None], qz[None, None, :]), 0.0)
+        np.minimum(out, outside + inside, out=out)
+    return np.maximum(out, -cutoff)
+
+
+def column_field(grid: EDFGrid, points: np.ndarray, cutoff: float) -> np.ndarray:
+    """Signed distance (m) on the window's nodes to the columns under surface points (N×3): the solid that
+    `mark_columns` marks, measured to the surface itself rather than node to node.
+
+    Each occupied node stands for a surface point: the centroid of the points in its cell, or, for column
+    fill below the seen surface, its own height at the x-y centroid of its column's points. A free node's
+    value is its distance to the point of its nearest occupied node (the feature transform of the free
+    mask gives that node); an occupied node next to free space reads its signed offset from its point
+    along the direction to that free space (positive when the node lies in front of the surface it stands
+    for); deeper ones the transform's depth. On a wall seen from the side the point lies on the wall right
+    in front of the node, so the values are the wall's distance to a few millimetres, where node-to-node
+    distances read up to a voxel nearer. Truncated at ±cutoff.
+    """
+    occupied = grid.empty()
+    mark_columns(grid, occupied, points)
+    if not occupied.any():
+        return np.full(tuple(s.stop - s.start for s in grid.window), cutoff)
+    sx, sy, sz = _surface_points(grid, points)
+    nearest = cast(np.ndarray, ndimage.distance_transform_edt(~occupied, return_distances=False,
+                                                              return_indices=True))
+    i, j, k = nearest[(slice(None), *grid.window)]
+    nodes = window_axes(grid)
+    x, y, z = nodes[0][:, None, None], nodes[1][None, :, None], nodes[2][None, None, :]
+    outside = np.sqrt((x - sx[i, j, k]) ** 2 + (y - sy[i, j, k]) ** 2 + (z - sz[i, j, k]) ** 2)
+    inside = -(depth_inside(occupied)[grid.window] - 0.5) * grid.voxel
+    w = grid.window
+    grown = tuple(slice(max(a.start - 1, 0), a.stop + 1) for a in w)
+    inner = tuple(slice(a.start - g.start, a.stop - g.start) for a, g in zip(w, grown, strict=True))
+    normal, sheet = _free_side(occupied[grown])
+    normal, sheet = normal[(slice(None), *inner)], sheet[inner]
+    dx, dy, dz = x - sx[w], y - sy[w], z - sz[w]
+    offset = normal[0] * dx + normal[1] * dy + normal[2] * dz
+    offset = np.where(sheet, 0.0, offset)  # a layer one node thin: which side is free is unknown, read 0
+    rim = sheet | np.any(normal != 0.0, axis=0)
+    inside = np.where(rim, offset, inside)
+    values = np.where(occupied[w], inside, outside)
+    return np.clip(values, -cutoff, cutoff)
+
+
+def _free_side(occupied: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(3, …) unit direction from each occupied node towards its free face-neighbours (zero where none), and
+    the mask of sheet nodes, whose free neighbours lie on opposite sides (there: the axis they lie along)."""
+    free = ~occupied
+    out = np.zeros((3, *occupied.shape))
+    both = np.zeros((3, *occupied.shape), dtype=bool)
+    for a in range(3):
+        lead = [slice(None)] * 3
+        lag = [slice(None)] * 3
+        lead[a], lag[a] = slice(1, None), slice(None, -1)
+        plus, minus = np.zeros(occupied.shape, dtype=bool), np.zeros(occupied.shape, dtype=bool)
+        plus[tuple(lag)] = free[tuple(lead)]  # free neighbour at +1 along a
+        minus[tuple(lead)] = free[tuple(lag)]  # free neighbour at −1 along a
+        out[a] = (plus.astype(float) - minus) * occupied
+        both[a] = plus & minus & occupied
+    norm = np.sqrt(np.sum(out**2, axis=0))
+    unit = np.divide(out, norm, out=np.zeros_like(out), where=norm > 0)
+    sheet = (norm == 0) & np.any(both, axis=0)
+    unit[:, sheet] = both[:, sheet]
+    return unit, sheet
+
+
+def _surface_points(grid: EDFGrid, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The surface point each node of the padded grid stands for, as x, y and z arrays of the grid's shape:
+    the centroid of the points in its cell, else its own height at the x-y centroid of its column's points
+    (else the node itself)."""
+    shape = grid.shape
+    idx = np.rint((points - grid.origin) / grid.voxel).astype(int)
+    ok = np.all((idx[:, :2] >= 0) & (idx[:, :2] < shape[:2]), axis=1) & (idx[:, 2] >= 0)
+    idx, points = idx[ok], points[ok]
+    idx[:, 2] = np.minimum(idx[:, 2], shape[2] - 1)
+    col = idx[:, 0] * shape[1] + idx[:, 1]
+    n2, n3 = shape[0] * shape[1], int(np.prod(shape))
+    cell = col * shape[2] + idx[:, 2]
+    n_col = np.maximum(np.bincount(col, minlength=n2), 1).reshape(shape[0], shape[1], 1)
+    n_cell = np.bincount(cell, minlength=n3).reshape(shape)
+    has = n_cell > 0
+    axes = [grid.origin[a] + grid.voxel * np.arange(shape[a]) for a in range(3)]
+    out = []
+    for a in range(3):
+        per_cell = np.bincount(cell, points[:, a], n3).reshape(shape) / np.maximum(n_cell, 1)
+        if a < 2:
+            column = np.bincount(col, points[:, a], n2).reshape(shape[0], shape[1], 1) / n_col
+            empty_col = np.bincount(col, minlength=n2).reshape(shape[0], shape[1], 1) == 0
+            fill = np.where(empty_col, axes[a][:, None, None] if a == 0 else axes[a][None, :, None], column)
+        else:
+            fill = axes[2][None, None, :]
+        out.append(np.where(has, per_cell, fill))
+    return out[0], out[1], out[2]

@@ -71,7 +71,7 @@ import numpy as np
 from core.mapping import association, consistency
 from core.mapping.completion import Completion
 from core.mapping.frame_association import FrameAssociation, Observed
-from core.mapping.local_edf import EDFGrid, local_edf, mark_boxes, mark_columns, mark_points
+from core.mapping.local_edf import EDFGrid, box_field, column_field, local_edf, mark_points, window_axes
 from core.mapping.registration import align
 from core.mapping.scene_points import ScenePoints, latest_time
 from core.mapping.segmentation import Segment, segment, voxelise
@@ -131,18 +131,27 @@ class ObjectMapper:
         t0 = time.perf_counter()
         p = self.params
         grid = EDFGrid.around(np.asarray(centre_xy, dtype=float), p.edf_window_m, p.edf_voxel_m, EDF_PAD_M)
-        occupied = grid.empty()
         if p.edf_geometry == "surface":
+            occupied = grid.empty()
             mark_points(grid, occupied, self.occupied_points())
+            edf = local_edf(grid, occupied, p.theta_cutoff_m)
         else:
-            boxes = [o for o in self.objects.values() if o.box_like]
-            mark_boxes(grid, occupied, ((o.solid_pose, o.solid.extent) for o in boxes))
-            others = [o.solid_world_points() for o in self.objects.values() if not o.box_like]
-            if others:
-                mark_columns(grid, occupied, np.concatenate(others))
-        edf = local_edf(grid, occupied, p.theta_cutoff_m)
+            edf = self._completed_edf(grid)
         self.timings_ms["edf"] = (time.perf_counter() - t0) * 1e3
         return edf
+
+    def _completed_edf(self, grid: EDFGrid) -> LocalEDF:
+        """Distances at the nodes to the surfaces themselves: to the solid boxes of box-like objects
+        (analytic), to the surface columns of the others (`column_field`)."""
+        p = self.params
+        axes = window_axes(grid)
+        boxes = [o for o in self.objects.values() if o.box_like]
+        values = box_field(axes, ((o.solid_pose, o.solid.extent) for o in boxes), p.theta_cutoff_m)
+        others = [o.solid_world_points() for o in self.objects.values() if not o.box_like]
+        if others:
+            values = np.minimum(values, column_field(grid, np.concatenate(others), p.theta_cutoff_m))
+        return LocalEDF(origin=grid.window_origin, voxel=grid.voxel, values=np.ascontiguousarray(values),
+                        cutoff=p.theta_cutoff_m)
 
     def occupied_points(self) -> np.ndarray:
         """Well-supported surface voxel centroids (P×3) of the live objects (no single-return noise specks)."""

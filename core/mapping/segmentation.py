@@ -89,13 +89,77 @@ def speckle_free(cloud: VoxelCloud, min_voxels: int) -> np.ndarray:
 
 
 def segment(cloud: VoxelCloud, min_voxels: int) -> list[Segment]:
-    """Connected clusters of occupied voxels with at least `min_voxels` voxels, largest first."""
-    labels = connected_voxels(cloud.keys)
+    """Connected clusters of occupied voxels with at least `min_voxels` voxels, largest first; clusters that
+    only a thin bridge joins are cut apart (`cut_thin_bridges`)."""
+    labels = cut_thin_bridges(cloud.keys, connected_voxels(cloud.keys), min_voxels)
     if len(labels) == 0:
         return []
+    keep = labels >= 0
+    cloud = VoxelCloud(cloud.centroids[keep], cloud.counts[keep], cloud.keys[keep])
+    labels = np.unique(labels[keep], return_inverse=True)[1]
     order = np.argsort(labels, kind="stable")
     sizes = np.bincount(labels)
     groups = np.split(order, np.cumsum(sizes)[:-1])
     segments = [Segment(cloud.centroids[g], cloud.counts[g]) for g in groups if len(g) >= min_voxels]
     segments.sort(key=lambda s: -len(s.points))
     return segments
+
+
+SURFACE_NEIGHBOURS = 4
+"""A voxel with at least this many occupied 26-neighbours lies in a surface (a face's voxels have 5–8, a
+one-voxel stroke's 2)."""
+
+
+def cut_thin_bridges(keys: np.ndarray, labels: np.ndarray, min_voxels: int) -> np.ndarray:
+    """Labels with each cluster that holds two or more surface parts of `min_voxels` joined only through
+    thin strokes (voxels with fewer than `SURFACE_NEIGHBOURS` occupied neighbours: a line of flying or
+    mis-placed returns) split into those parts; stroke voxels next to a part join it, the others get −1
+    (dropped). Two boxes a stray line of points connects are two observations, never one object."""
+    if len(keys) == 0:
+        return labels
+    n = int(labels.max()) + 1
+    lo_c = np.full((n, 2), np.iinfo(np.int64).max)
+    hi_c = np.full((n, 2), np.iinfo(np.int64).min)
+    np.minimum.at(lo_c, labels, keys[:, :2])
+    np.maximum.at(hi_c, labels, keys[:, :2])
+    wide = np.hypot(*(hi_c - lo_c).T) >= BRIDGED_MIN_CELLS  # only a wide cluster can be two objects and a gap
+    if not wide.any():
+        return labels
+    checked = wide[labels]
+    out = cut_wide(keys[checked], labels[checked], min_voxels, int(labels.max()) + 1)
+    labels = labels.copy()
+    labels[checked] = out
+    return labels
+
+
+BRIDGED_MIN_CELLS = 20
+"""Clusters narrower than this many voxels across (x-y diagonal: 1 m at 5 cm) are not checked for thin bridges."""
+
+
+def cut_wide(keys: np.ndarray, labels: np.ndarray, min_voxels: int, first_new: int) -> np.ndarray:
+    """`cut_thin_bridges` on the voxels of the wide clusters (new labels from `first_new` on)."""
+    lo = keys.min(axis=0)
+    k = keys - lo
+    grid = np.zeros(tuple(k.max(axis=0) + 3), dtype=bool)
+    k = k + 1
+    grid[k[:, 0], k[:, 1], k[:, 2]] = True
+    neighbours = np.rint(ndimage.uniform_filter(grid.astype(np.float32), size=3, mode="constant") * 27) - 1
+    surface = grid & (neighbours >= SURFACE_NEIGHBOURS)
+    parts, n_parts = cast(tuple[np.ndarray, int], ndimage.label(surface, structure=_CONNECTIVITY_26))
+    if n_parts < 2:
+        return labels
+    part = parts[k[:, 0], k[:, 1], k[:, 2]]
+    sizes = np.bincount(part, minlength=n_parts + 1)
+    out = labels.copy()
+    for cluster in np.unique(labels):
+        members = labels == cluster
+        big = [p for p in np.unique(part[members]) if p > 0 and sizes[p] >= min_voxels]
+        if len(big) < 2:
+            continue
+        # each part keeps its own voxels and the stroke voxels touching it; the rest of the stroke goes
+        grown = ndimage.grey_dilation(np.where(np.isin(parts, big), parts, 0), footprint=_CONNECTIVITY_26)
+        owner = np.where(part > 0, part, grown[k[:, 0], k[:, 1], k[:, 2]])
+        small = members & ~np.isin(owner, big)
+        out[members] = first_new + owner[members]
+        out[small] = -1
+    return out
