@@ -230,6 +230,8 @@ class LiveLoops:
                 backend.prepare_cameras()
             finally:  # a failure faults the run; start() need not wait it out
                 self._cameras_ready.set()
+                if self.physics is not None:  # the stall clock starts once the cameras exist (seconds under load)
+                    self.physics.stats.beat = time.monotonic()
         if self.loop.take_physics_step(PHYSICS_STEP_S):
             backend.step(PHYSICS_STEP_S)
 
