@@ -73,9 +73,8 @@ def test_start_stop_estop_reset_cycles_end_clean() -> None:
     rt, _ = faulty_runtime("object", htmpc=PATIENT)
     rt.start_live()
     try:
-        assert wait_until(lambda: _isolated(rt) is not None, timeout_s=120), "the map never moved to its worker"
-        worker = _isolated(rt)
-        assert worker is not None
+        worker = rt.map
+        assert isinstance(worker, MapProcess)
         threads, children, contexts = threading.active_count(), multiprocessing.active_children(), _gl_contexts()
         faults_seen = []
         for i in range(30):
@@ -95,3 +94,28 @@ def test_start_stop_estop_reset_cycles_end_clean() -> None:
     finally:
         rt.shutdown()
     assert not multiprocessing.active_children()
+
+
+def test_slow_camera_setup_after_a_reset_is_no_physics_stall(monkeypatch) -> None:
+    """Every Reset makes the cameras' GL contexts anew, which took seconds under load: the physics watchdog
+    counts from when they exist (the other loops wait for them, `CAMERA_SETUP_WAIT_S`), not from the thread's
+    start, which faulted the new run ('physics loop stalled')."""
+    import time
+
+    from core.sim.sim_robot import SimRobot
+
+    prepare = SimRobot.prepare_cameras
+
+    def slow(self: SimRobot) -> None:
+        time.sleep(6.0)  # longer than the physics loop's stall limit (5 s)
+        prepare(self)
+
+    rt, _ = faulty_runtime()
+    rt.start_live()
+    try:
+        monkeypatch.setattr(SimRobot, "prepare_cameras", slow)
+        rt.reset()
+        time.sleep(1.0)  # a few watchdog periods after the other loops started
+        assert rt.fault is None, rt.fault
+    finally:
+        rt.shutdown()
