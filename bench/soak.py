@@ -315,6 +315,9 @@ def api_cycles(n: int, pause_s: float = 0.3) -> ApiTally:
         finally:
             runtime.shutdown()
             bridge.stop()
+    deadline = time.monotonic() + 30.0  # the worker ends at shutdown; a loaded machine reaps it late
+    while multiprocessing.active_children() and time.monotonic() < deadline:
+        time.sleep(0.2)
     tally.processes_after = len(multiprocessing.active_children())
     return tally
 
