@@ -194,14 +194,16 @@ class LiveLoops:
 
     def stop(self, timeout_s: float = 3.0) -> list[str]:
         """Stop every thread; the names of those that did not end within `timeout_s` each (a map process a
-        stuck thread waits on is ended, so that thread can finish)."""
+        stuck thread waits on is ended, so that thread can finish; a thread slow for another reason, such as
+        physics making GL contexts on a loaded machine, leaves the worker alone for the next loop)."""
         for loop in [self.watchdog, *self.loops]:
             loop.stop()
         self._control_due.set()
         self.loop.wake_mapping()
         stuck = [loop.name for loop in [self.watchdog, *self.loops] if not loop.join(timeout_s)]
-        if stuck and isinstance(self.loop.map, MapProcess):
+        if stuck and isinstance(self.loop.map, MapProcess) and self.loop.map.calling is not None:
             self.loop.map.abort()
+        if stuck:  # a second chance, as long again
             stuck = [loop.name for loop in [self.watchdog, *self.loops] if not loop.join(timeout_s)]
         return stuck
 
@@ -228,6 +230,8 @@ class LiveLoops:
                 backend.prepare_cameras()
             finally:  # a failure faults the run; start() need not wait it out
                 self._cameras_ready.set()
+                if self.physics is not None:  # the stall clock starts once the cameras exist (seconds under load)
+                    self.physics.stats.beat = time.monotonic()
         if self.loop.take_physics_step(PHYSICS_STEP_S):
             backend.step(PHYSICS_STEP_S)
 

@@ -118,6 +118,10 @@ class MapProcess:
         """The map while it works here (until the worker is ready), None once the worker has it."""
         self._ready = False
         self._closed = False
+        self._aborted = False
+        """Set by `abort`: the worker is as good as gone even before the kill has taken effect (`alive`)."""
+        self._calling: str | None = None
+        """The request a thread is waiting on the worker for (None: none)."""
         self._latest: _Latest | None = None
         ctx = multiprocessing.get_context("spawn")  # never fork a process that runs threads
         self._conn, child = ctx.Pipe()
@@ -143,6 +147,7 @@ class MapProcess:
         return self._local is None
 
     def _call(self, op: str, arg: Any = None) -> Any:
+        self._calling = op
         try:
             self._conn.send((op, arg))
             if not self._conn.poll(self.timeout_s):
@@ -150,6 +155,8 @@ class MapProcess:
             kind, value = self._conn.recv()
         except (EOFError, OSError) as err:
             raise self._gone(err) from err
+        finally:
+            self._calling = None
         if kind == "error":
             raise MapProcessError(f"{op} failed in the mapping process: {value}")
         return value
@@ -231,7 +238,14 @@ class MapProcess:
 
     @property
     def alive(self) -> bool:
-        return not self._closed and self._process.is_alive()
+        """Whether the worker can take requests: not closed, not aborted (a killed worker stays 'alive' to
+        `is_alive` until the kernel has reaped it: it must never be handed on in that moment), still running."""
+        return not self._closed and not self._aborted and self._process.is_alive()
+
+    @property
+    def calling(self) -> str | None:
+        """The request a thread is waiting on the worker for, if any (what `abort` would cut short)."""
+        return self._calling
 
     def adopt(self, world_map: WorldMap) -> None:
         """Run `world_map` instead (a Reset: a new map, the same worker, no second start-up)."""
@@ -246,6 +260,7 @@ class MapProcess:
 
     def abort(self) -> None:
         """End the worker now, from any thread (a call waiting on it fails at once); its map is lost."""
+        self._aborted = True
         if self._process.is_alive():
             self._process.kill()
 
