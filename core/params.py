@@ -366,6 +366,10 @@ class MappingParams:
     """'obstacle': floor cells that rays should have met within `unknown_floor_range_m` and that returned no
     depth are columns in the EDF (so the CBF slows and stops the base before them) and in the planner's
     occupancy; 'free': ignored, as the paper (a surface that never returns depth is then never mapped)."""
+    unknown_cameras: tuple[str, ...] = ("base",)
+    """The cameras whose frames give the evidence. Not the hand camera: passing close to boxes, its rays are cut
+    short by its near clip (0.1 m), and on the aisle's first lap it marked 850 cells where nothing was dark
+    (the base camera 3; docs/decisions.md, "Unknown space as an obstacle")."""
     unknown_floor_range_m: float = 2.5
     """Only rays whose floor point lies within this depth count (below the 3 m range, so that noise never
     pushes a floor return out of range)."""
