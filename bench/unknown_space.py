@@ -54,8 +54,9 @@ def drive(unknown_space: str, seconds: float) -> tuple[dict[str, float], Runtime
 
 def evidence_cost(rt: Runtime, repeats: int) -> dict[str, float]:
     """Median ms of integrating one frame's unknown-floor evidence, and of joining the columns to a field."""
-    frames = list(rt.latest_frames.values())
-    floor = UnknownFloor(MappingParams())
+    params = MappingParams()
+    frames = [f for f in rt.latest_frames.values() if f.camera in params.unknown_cameras]
+    floor = UnknownFloor(params)
     integrate, join = [], []
     edf = rt.closed_loop.last_edf
     for _ in range(repeats):

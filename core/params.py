@@ -141,6 +141,9 @@ class SimParams:
     """500 Hz physics (paper: commands at 100 Hz)."""
     walls: bool = False
     room_half_size_m: float = 6.0
+    floor_beyond_room_m: float = 10.0
+    """Without walls the floor reaches this far past the room (m), beyond every camera's range: a floor that
+    ended in view would read as no return, which the unknown-space rule rightly treats as not free."""
     hand_camera: CameraParams = field(default_factory=CameraParams)
     base_camera: CameraParams = field(default_factory=CameraParams)
     sensor: SensorParams = field(default_factory=SensorParams)
@@ -366,6 +369,10 @@ class MappingParams:
     """'obstacle': floor cells that rays should have met within `unknown_floor_range_m` and that returned no
     depth are columns in the EDF (so the CBF slows and stops the base before them) and in the planner's
     occupancy; 'free': ignored, as the paper (a surface that never returns depth is then never mapped)."""
+    unknown_cameras: tuple[str, ...] = ("base",)
+    """The cameras whose frames give the evidence. Not the hand camera: passing close to boxes, its rays are cut
+    short by its near clip (0.1 m), and on the aisle's first lap it marked 850 cells where nothing was dark
+    (the base camera 3; docs/decisions.md, "Unknown space as an obstacle")."""
     unknown_floor_range_m: float = 2.5
     """Only rays whose floor point lies within this depth count (below the 3 m range, so that noise never
     pushes a floor return out of range)."""

@@ -1,5 +1,5 @@
-"""The problems panel: QP failures, fallback plans, slow solves, faults, stale state and watchdog events, with
-counts and times (`app.runtime.problems`); a one-line summary stays in view under the status."""
+"""The problems panel: QP failures, fallback plans, slow solves, faults, stale state, watchdog events and unknown
+space ahead, with counts and times (`app.runtime.problems`); a one-line summary stays in view under the status."""
 
 from __future__ import annotations
 

@@ -43,6 +43,8 @@ class UnknownFloor:
     def integrate(self, frame: DepthFrame) -> None:
         """Mark the cells whose expected floor rays returned nothing; clear those where the floor was seen."""
         p = self.params
+        if frame.camera not in p.unknown_cameras:
+            return
         rays, v, u = pixel_rays(frame.K, frame.depth.shape, PIXEL_STRIDE)
         R, t = frame.T_world_camera[:3, :3].astype(np.float32), frame.T_world_camera[:3, 3]
         if t[2] <= 0.0:
