@@ -30,7 +30,7 @@ def make_map(kind: MapKind, robot: RobotModel, world: SimWorld | None, params: M
         from core.mapping import VoxelMap
 
         return VoxelMap(robot, params)
-    raise ValueError(f"unknown map kind {kind!r}: object, voxel or ground_truth")
+    raise ValueError(f"unknown map kind {kind!r}: object, voxel or ground_truth")  # pyright: ignore[reportUnreachable]  (untyped callers)
 
 
 def make_controller(robot: RobotModel, params: HTMPCParams) -> HTMPC:
