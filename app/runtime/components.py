@@ -30,7 +30,7 @@ def make_map(kind: MapKind, robot: RobotModel, world: SimWorld | None, params: M
         from core.mapping import VoxelMap
 
         return _with_unknown_space(VoxelMap(robot, params), params)
-    raise ValueError(f"unknown map kind {kind!r}: object, voxel or ground_truth")
+    raise ValueError(f"unknown map kind {kind!r}: object, voxel or ground_truth")  # pyright: ignore[reportUnreachable]  (untyped callers)
 
 
 def _with_unknown_space(world_map: WorldMap, params: MappingParams) -> WorldMap:

@@ -25,6 +25,8 @@ ROOT = Path(__file__).parents[2]
 DEFAULT_SCENE = ROOT / "core" / "sim" / "scenes" / "default.yaml"
 DEFAULT_SEQUENCE = ROOT / "tasks" / "examples" / "two_pickups.yaml"
 CONSTRAINT_KINDS: tuple[ConstraintKind, ...] = typing.get_args(ConstraintKind)
+SPEED_RANGE = (0.05, 20.0)
+"""Live mode: the sim seconds per wall second a run accepts (the bridge's API checks the same range)."""
 
 
 @dataclass(frozen=True)
@@ -55,6 +57,8 @@ class RuntimeConfig:
     def __post_init__(self) -> None:
         if self.map_kind not in MAP_KINDS:
             raise ValueError(f"map_kind must be one of {MAP_KINDS}, got {self.map_kind!r}")
+        if not (SPEED_RANGE[0] <= self.speed <= SPEED_RANGE[1]):
+            raise ValueError(f"speed must be within {SPEED_RANGE[0]}–{SPEED_RANGE[1]:g}, got {self.speed}")
 
     @property
     def constraint(self) -> ConstraintKind:
@@ -65,6 +69,4 @@ class RuntimeConfig:
         """This configuration with another map kind and/or constraint kind (None: unchanged), validated."""
         htmpc = self.htmpc if constraint is None else replace(self.htmpc, constraint=constraint)
         return replace(self, map_kind=map_kind or self.map_kind, htmpc=htmpc)
-        if not (0.05 <= self.speed <= 20.0):
-            raise ValueError(f"speed must be within 0.05–20, got {self.speed}")
 

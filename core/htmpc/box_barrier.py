@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.htmpc.collision_constraint import DistanceField, distance_and_gradient
+from core.htmpc.distance_field import DistanceField, distance_and_gradient
 from core.robot.collision_boxes import CollisionBox
 
 SIDES = ("front", "back", "left", "right")

@@ -14,22 +14,17 @@ The base's boxes add rows of the same form at their points closest to the obstac
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from core.htmpc.distance_field import DistanceField, distance_and_gradient
 from core.htmpc.horizon_kinematics import HorizonKinematics
 
 if TYPE_CHECKING:
     from core.htmpc.box_barrier import BoxBarrier
 
-
-class DistanceField(Protocol):
-    """What the controller needs of a map (`core.types.LocalEDF` satisfies it)."""
-
-    def distance(self, p: np.ndarray) -> np.ndarray: ...
-
-    def gradient(self, p: np.ndarray) -> np.ndarray: ...
+__all__ = ["CollisionConstraint", "CollisionRows", "DistanceField", "StepRows", "step_rows"]
 
 
 @dataclass(frozen=True)
@@ -64,12 +59,6 @@ def step_rows(rows: CollisionRows, q0: np.ndarray, v0: np.ndarray, tau: float) -
     a_q, a_v = rows.a_q[0], rows.a_v[0]
     return StepRows(a_a=0.5 * tau**2 * a_q + tau * a_v, lb=rows.lb[0] - a_q @ (q0 + tau * v0) - a_v @ v0,
                     h=rows.h[0])
-
-
-def distance_and_gradient(edf: DistanceField, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """EDF value and gradient at p, from one lookup where the field offers it (`LocalEDF`)."""
-    both = getattr(edf, "distance_and_gradient", None)
-    return both(p) if both is not None else (edf.distance(p), edf.gradient(p))
 
 
 class CollisionConstraint:

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from core.htmpc.collision_constraint import CollisionRows, StepRows
-from core.htmpc.ocp_qp import NQ, QPLayout, StructuredQP
+from core.htmpc.ocp_qp import NQ, LevelArrays, QPLayout, StructuredQP
 from core.htmpc.tasks import Linearisation
 from core.params import HTMPCParams
 
@@ -26,17 +26,6 @@ class LexBound:
 
     lin: Linearisation
     e_star: np.ndarray
-
-
-@dataclass
-class LevelArrays:
-    """A level's QP data: H and A as non-zeros, g and the row bounds dense."""
-
-    h: np.ndarray
-    g: np.ndarray
-    a: np.ndarray
-    lba: np.ndarray
-    uba: np.ndarray
 
 
 def task_cost(arrays: LevelArrays, qp: StructuredQP, lin: Linearisation, q_bar: np.ndarray,

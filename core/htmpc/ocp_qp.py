@@ -20,16 +20,12 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
 
 from core.htmpc.buffered_function import BufferedFunction
 from core.types import NQ
-
-if TYPE_CHECKING:
-    from core.htmpc.level_problem import LevelArrays
 
 log = logging.getLogger(__name__)
 
@@ -45,6 +41,17 @@ minimum step): such stalls come from a primal guess on the boundary of a narrow 
 level's optimum against its (7c) rows, a warm start at a velocity limit), and 'balance' solved every one we
 met, where a cold start rescued only some and more iterations none (docs/decisions.md, "HPIPM warm
 start"). It is not the default: it costs more per iteration."""
+
+
+@dataclass
+class LevelArrays:
+    """A level's QP data: H and A as non-zeros, g and the row bounds dense."""
+
+    h: np.ndarray
+    g: np.ndarray
+    a: np.ndarray
+    lba: np.ndarray
+    uba: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -182,7 +189,7 @@ class StructuredQP:
         self._call_buffer = BufferedFunction(self.solver, rebind=True)
         self._rescue: BufferedFunction | None = None
         self.level_templates: dict[tuple, LevelArrays] = {}
-        """The constant part of a level's data per (parameters, damping), built once by `level_problem`."""
+        """The constant part of a level's data per (parameters, damping), built once by `level_problem.base_arrays`."""
         self._solver_s: dict[int, float] = {}
         """casadi's `t_wall_solver` per buffer at its last call (a buffer's statistics accumulate over calls)."""
         self.A_dynamics_nz = self._dynamics_nz()
