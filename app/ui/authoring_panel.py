@@ -134,9 +134,9 @@ class AuthoringPanel:
                                              source=source, text=text)
         self._version = self.runtime.sequence_version
         self._refresh(seq, select)
-        return warnings
         if getattr(self.runtime, "run_state", None) in (RunState.RUNNING, RunState.PAUSED):
             notify_all(self.server, "Applies at the next Start", NEXT_START, color="yellow")
+        return warnings
 
     def _refresh(self, seq: TaskSequence | None = None, select: int | None = None) -> None:
         seq = seq or self.history.current
