@@ -44,6 +44,6 @@ def test_anchored_progress_survives_a_recording():
 
     seq = parse_sequence("objects: {box_3: {}}\nsubtasks:\n- kind: ee\n  target: {anchor: {object: box_3}}\n")
     rt = Runtime(RuntimeConfig(map_kind="ground_truth"), scene=Scene((Box("box_3", (2.5, 0.0, 0.3)),)), sequence=seq)
-    messages = dict(snapshot_messages(rt.snapshot(), with_points=False))
+    messages = dict(snapshot_messages(rt.snapshot()))
     back = snapshot_from_messages(json.loads(json.dumps(messages)))
     assert back.progress[0].anchor_object == "box_3" and back.progress[0].anchor_label == "top of box_3"

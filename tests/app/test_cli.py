@@ -8,6 +8,7 @@ import sys
 import pytest
 
 from app.cli import _config, build_parser
+from app.runtime import ProblemKind
 from tasks.sequence_file import EXAMPLES_DIR
 from tests.app.conftest import ROOT
 
@@ -63,7 +64,7 @@ def test_headless_run_with_params_reports_them(tmp_path):
     assert report["meta"]["tunables"]["sequencer"]["nominal_speed_mps"] == 0.8
     assert report["summary"]["max_base_speed_mps"] > 0.8  # 0.65 m/s with the default 0.6 m/s reference
     assert "problems" in report and "problems:" in proc.stdout
-    assert set(report["problems"]) == {"qp_failure", "fallback", "slow_solve", "fault", "stale_state", "watchdog"}
+    assert set(report["problems"]) == {kind.value for kind in ProblemKind}  # every kind, zeros too
     assert all(isinstance(row["count"], int) for row in report["problems"].values())
 
 
