@@ -28,6 +28,8 @@ EDFGeometry = Literal["completed", "surface"]
 """What the object map's EDF measures the distance to: completed solid boxes, or observed surfaces (9a)."""
 UnknownSpaceKind = Literal["obstacle", "free"]
 """Floor the cameras should have seen and got no depth from: an obstacle for the base, or free (the paper)."""
+CameraName = Literal["base", "hand"]
+"""The robot's two depth cameras."""
 
 
 @cache
@@ -141,9 +143,6 @@ class SimParams:
     """500 Hz physics (paper: commands at 100 Hz)."""
     walls: bool = False
     room_half_size_m: float = 6.0
-    floor_beyond_room_m: float = 10.0
-    """Without walls the floor reaches this far past the room (m), beyond every camera's range: a floor that
-    ended in view would read as no return, which the unknown-space rule rightly treats as not free."""
     hand_camera: CameraParams = field(default_factory=CameraParams)
     base_camera: CameraParams = field(default_factory=CameraParams)
     sensor: SensorParams = field(default_factory=SensorParams)
@@ -445,7 +444,7 @@ class LocalizationParams:
 
     enabled: bool = False
     """Off by default: see docs/decisions.md ("Localization") for the measurement behind the choice."""
-    camera: str = "base"
+    camera: CameraName = "base"
     """Whose frames are registered (the base camera sees the floor and the boxes around the base)."""
     rate_hz: float = 2.0
     """Registrations per second of robot time (frames in between are skipped)."""
@@ -509,3 +508,6 @@ class LocalizationParams:
     reference_period_s: float = 2.0
     """The loop asks the map for its trusted surfaces at most this often (s); the prepared reference is kept
     while the surfaces and the base's 1 m cell stay the same."""
+
+    def __post_init__(self) -> None:
+        check_choices(self)
