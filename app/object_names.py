@@ -19,7 +19,6 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -30,9 +29,6 @@ from core.sim.world import SimWorld
 from core.types import MappedObject, ObjectMapSnapshot, ObjectStatus
 from tasks.anchors import MapObjects, ObjectView
 from tasks.schema import NamedObject, TaskSequence
-
-if TYPE_CHECKING:
-    from app.runtime import Runtime
 
 
 @dataclass(frozen=True)
@@ -186,21 +182,3 @@ def _seen(world_map: WorldMap, world: SimWorld | None) -> list[SeenObject]:
         return [SeenObject(b.id, np.asarray(b.position, float), float(b.yaw), np.asarray(b.size, float))
                 for b in world.boxes()]
     return seen_objects(world_map.snapshot())
-
-
-def name_object(runtime: Runtime, name: str, object_id: str) -> TaskSequence:
-    """`Runtime.name_object`: bind `name` to the live object `object_id` and save it in the sequence."""
-    loop = runtime.closed_loop
-    with loop.using_map() as world_map:
-        obj = find_object(world_map, runtime.world, object_id)
-    if obj is None:
-        raise ValueError(f"no object {object_id!r} in the map")
-    seq = runtime.sequence
-    named = NamedObject(position=(float(obj.position[0]), float(obj.position[1]), float(obj.position[2])),
-                        yaw_deg=math.degrees(obj.yaw))
-    sequence = TaskSequence.model_validate({**seq.model_dump(), "objects": {**seq.model_dump()["objects"],
-                                                                          name: named.model_dump()}})
-    with loop.step_lock:  # the control step reads the names (live mode: another thread)
-        loop.names.name(name, obj, runtime.time)
-    runtime.set_sequence(sequence)
-    return sequence

@@ -18,6 +18,7 @@ bridge read `Snapshot`s and call the public methods below.
 from __future__ import annotations
 
 import logging
+import math
 import threading
 from collections import deque
 from collections.abc import Callable
@@ -28,7 +29,7 @@ import numpy as np
 
 import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported)
 from app.map_kind import MapKind
-from app.object_names import name_object
+from app.object_names import find_object
 from app.runtime.closed_loop import MOVING_STATES, ClosedLoop
 from app.runtime.config import RuntimeConfig
 from app.runtime.live_loops import LiveLoops
@@ -46,7 +47,7 @@ from core.sim.scene import Box, Scene, load_scene, random_scene
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
 from core.types import NQ, DepthFrame, LocalEDF, Plan, RobotBackend, RobotState
-from tasks.schema import TaskSequence
+from tasks.schema import NamedObject, TaskSequence
 from tasks.sequence_file import load_sequence
 from tasks.sequencer import Sequencer
 from tasks.validation import TargetFinding
@@ -315,7 +316,20 @@ class Runtime:
     def name_object(self, name: str, object_id: str) -> TaskSequence:
         """Name a mapped object (`object_<n>`; a scene box id with the ground-truth map) for anchored targets:
         bound now and saved with the sequence where it is; ValueError for a bad name or an unknown object."""
-        return name_object(self, name, object_id)
+        loop = self.closed_loop
+        with loop.using_map() as world_map:
+            obj = find_object(world_map, self.world, object_id)
+        if obj is None:
+            raise ValueError(f"no object {object_id!r} in the map")
+        seq = self.sequence
+        named = NamedObject(position=(float(obj.position[0]), float(obj.position[1]), float(obj.position[2])),
+                            yaw_deg=math.degrees(obj.yaw))
+        objects = {**seq.model_dump()["objects"], name: named.model_dump()}
+        sequence = TaskSequence.model_validate({**seq.model_dump(), "objects": objects})
+        with loop.step_lock:  # the control step reads the names (live mode: another thread)
+            loop.names.name(name, obj, self.time)
+        self.set_sequence(sequence)
+        return sequence
 
     # --- scene edits (simulation only) -------------------------------------------------------------
 
