@@ -115,4 +115,6 @@ def test_registration_failures_leave_odometry_in_charge_and_are_counted():
     assert loc.counts[Verdict.ACCEPTED.value] == 0 and not np.any(loc.world_from_odom)
     assert loc.status == LocalizationStatus.ODOMETRY
     errors_without = _errors(_runtime(DRIFTY, LocalizationParams(enabled=False)), 8.0)
-    np.testing.assert_allclose(errors_with, errors_without, atol=1e-9)  # the very run odometry alone makes
+    # the run odometry alone makes (to 5 mm: on a loaded machine a solve that overruns its wall-clock budget takes
+    # the braking fallback, which parts two lockstep runs)
+    np.testing.assert_allclose(errors_with, errors_without, rtol=0.0, atol=0.005)
