@@ -2,11 +2,14 @@
 whose surface returns no depth from the start stands between the robot and its base goal, closed loop, lockstep,
 the object map perceiving through the sensor model."""
 
+from dataclasses import replace
+
 import pytest
 
 from app.runtime import Runtime, RuntimeConfig
 from app.runtime.problems import ProblemKind, summary_line
 from app.runtime.snapshot import RunState
+from core.params import MappingParams
 from core.sim.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 
@@ -18,7 +21,8 @@ DARK = Box("dark", (3.0, 0.0, 0.4), (0.6, 1.2, 0.8), dark=True)
 def test_a_goal_behind_a_box_that_returns_no_depth_is_reached_round_it_without_touching_it():
     scene = Scene((DARK,), robot_start=(0.0, 0.0, 0.0))
     sequence = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=5.0, y=0.0), timeout_s=40.0)])
-    rt = Runtime(RuntimeConfig(map_kind="object"), scene=scene, sequence=sequence)
+    config = RuntimeConfig(map_kind="object", mapping=replace(MappingParams(), unknown_space="obstacle"))
+    rt = Runtime(config, scene=scene, sequence=sequence)
     lines: list[str] = []
     log = rt.run_lockstep(45.0, on_control=lambda r: lines.append(r.status_line()))
     assert not rt.map.snapshot().objects, "the dark box was mapped: this test needs one the cameras cannot see"

@@ -43,7 +43,9 @@ def test_a_message_above_16_mib_closes_the_link_with_1009(bridge: BridgeServer) 
             ws.send(b"\x00" * (MAX_MESSAGE_BYTES + 1))
             while True:
                 ws.recv(timeout=10)
-    assert closed.value.rcvd is not None and closed.value.rcvd.code == 1009
+    # the close frame reaches the client unless the transport broke while the message was still going out;
+    # the bridge's own log says which code it closed with either way
+    assert closed.value.rcvd is None or closed.value.rcvd.code == 1009
     assert wait_until(lambda: not bridge.link.connected, timeout_s=5)  # a new driver may connect
     assert "close code 1009" in FLAT
 
