@@ -168,6 +168,7 @@ class Sequencer:
         self._ee_waypoint = 0
         self._base_waypoint = 0
         self._paused_at: float | None = None
+        self._resume_pending = False
         self._best_error = math.inf
         """The base's least error to its goal so far, and when it last fell by `stall_progress_m` (s)."""
         self._improved_t = 0.0
@@ -178,13 +179,20 @@ class Sequencer:
 
     def pause(self, t: float) -> None:
         """Stop the subtask clock at time t: paused time counts toward neither `timeout_s` nor `dwell_s`."""
+        self._resume_pending = False  # paused again before a resume took effect: still paused since then
         if self._paused_at is None:
             self._paused_at = t
 
-    def resume(self, t: float) -> None:
-        """Run the subtask clock again from time t (the paused span moves the subtask's start forward)."""
+    def resume(self, t: float | None = None) -> None:
+        """Run the subtask clock again from time t (the paused span moves the subtask's start forward); with no
+        t, from the time of the next `update`: a robot's clock read at Start may still be the one from before
+        the pause (a driver that went silent), and only its next state says how long the pause lasted."""
         if self._paused_at is None:
             return
+        if t is None:
+            self._resume_pending = True
+            return
+        self._resume_pending = False
         span = max(0.0, t - self._paused_at)
         self._paused_at = None
         if self._started_t is not None:
@@ -250,6 +258,8 @@ class Sequencer:
                objects: MapObjects | None = None) -> References | None:
         """Advance the state machine and return references for the active subtask (None: stop); anchored
         targets are placed on their objects in `objects` (the latest map snapshot) every period."""
+        if self._resume_pending:
+            self.resume(t)
         authored = self.active
         if authored is None:
             return None

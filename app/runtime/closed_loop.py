@@ -250,7 +250,7 @@ class ClosedLoop:
         interrupted = self.run_state
         if self._halted_t is not None:  # stopped or e-stopped: the subtask clock stood still since then
             self.sequencer.pause(self._halted_t)
-        self.sequencer.resume(self.state.t)
+        self.sequencer.resume()  # from the next state's time: the robot's clock may have run on unseen
         if self.world is None or interrupted != RunState.PAUSED:  # a robot held still: its old plan is void
             self.plan = None
             self._pending_plans.clear()

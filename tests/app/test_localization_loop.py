@@ -109,12 +109,20 @@ def test_a_floor_only_view_corrects_nothing():
 @pytest.mark.slow
 def test_registration_failures_leave_odometry_in_charge_and_are_counted():
     rt = _runtime(DRIFTY, LocalizationParams(enabled=True, min_source_points=10**7, min_trusted_points=0))
-    errors_with = _errors(rt, 8.0)
+    gaps: list[float] = []
+    errors: list[float] = []
+
+    def track(r: Runtime) -> None:
+        odometry = r.backend.state().q[:3]  # type: ignore[attr-defined]  # the backend's own estimate
+        gaps.append(float(np.max(np.abs(r.state.q[:3] - odometry))))
+        errors.append(float(np.linalg.norm(odometry[:2] - r.backend.true_state().q[:2])))  # type: ignore[attr-defined]
+
+    rt.run_lockstep(8.0, on_control=track)
     loc = rt.closed_loop.localizer
     assert loc is not None and loc.counts[Verdict.TOO_FEW_POINTS.value] >= 10
     assert loc.counts[Verdict.ACCEPTED.value] == 0 and not np.any(loc.world_from_odom)
     assert loc.status == LocalizationStatus.ODOMETRY
-    errors_without = _errors(_runtime(DRIFTY, LocalizationParams(enabled=False)), 8.0)
-    # the run odometry alone makes (to 5 mm: on a loaded machine a solve that overruns its wall-clock budget takes
-    # the braking fallback, which parts two lockstep runs)
-    np.testing.assert_allclose(errors_with, errors_without, rtol=0.0, atol=0.005)
+    assert len(gaps) >= 70 and max(errors) > 0.05, "the premise: odometry drifts"
+    # at every control step the loop's pose is odometry's own (compared within one run: two lockstep runs may
+    # part by a centimetre once a rounding difference flips a discrete choice of the map or the solver)
+    assert max(gaps) < 1e-9

@@ -186,6 +186,27 @@ def test_paused_time_counts_toward_neither_timeout_nor_dwell(robot):
     assert s.finished
 
 
+def test_a_resume_without_a_time_counts_the_pause_up_to_the_next_state(robot):
+    """Start after a silent driver: the clock read at Start is still the old one, so the pause ends at the time
+    of the next state the robot reports (here 9 s later), not at Start's stale reading."""
+    seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=4.0, y=0.0), timeout_s=8.0)])
+    s = Sequencer(robot, seq)
+    s.update(state_at(0.0, 0.0), np.zeros((0, 3)), 0.0)
+    s.update(state_at(0.5, 0.0), np.zeros((0, 3)), 2.0)
+    s.pause(2.0)
+    s.resume()
+    assert s.update(state_at(0.6, 0.0), np.zeros((0, 3)), 11.0) is not None
+    assert s.progress[0].elapsed_s == pytest.approx(2.0)
+    s.update(state_at(0.7, 0.0), np.zeros((0, 3)), 11.5)
+    assert s.progress[0].elapsed_s == pytest.approx(2.5)
+    s.pause(12.0)
+    s.resume()
+    s.pause(13.0)  # paused again before any state came: still paused since 12 s
+    s.resume(20.0)
+    s.update(state_at(0.8, 0.0), np.zeros((0, 3)), 20.5)
+    assert s.progress[0].outcome == Outcome.ACTIVE and s.progress[0].elapsed_s == pytest.approx(3.5)
+
+
 def test_without_the_pause_the_same_wait_times_out(robot):
     seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=4.0, y=0.0), timeout_s=8.0)])
     s = Sequencer(robot, seq)
