@@ -276,6 +276,28 @@ class PlanStatus(StrEnum):
     FAILED = "failed"
 
 
+class PlanReason(StrEnum):
+    """Why a plan is what it is, for programs (the problems log counts by it); `Plan.message` is the free text
+    for people, and rewording it changes no count."""
+
+    NONE = "none"
+    """A solved plan with nothing to report."""
+    NO_TASK = "no_task"
+    """Nothing to do (the sequence ended or has not started): holding, not a problem."""
+    QP_FAILED = "qp_failed"
+    """A level's QP failed: level 1 makes a braking plan, a later level keeps the earlier levels' plan."""
+    SOLVE_TIMEOUT = "solve_timeout"
+    """The step took longer than `HTMPCParams.solve_timeout_ms` (live runs only)."""
+    NON_FINITE_STATE = "non_finite_state"
+    CONTROLLER_ERROR = "controller_error"
+    """The solve raised (any exception type)."""
+    OUTSIDE_LIMITS = "outside_limits"
+    """The solution broke the velocity or acceleration limits."""
+    NO_ITERATION = "no_iteration"
+    FAULT = "fault"
+    """A loop of the runtime faulted: braking to rest."""
+
+
 @dataclass(frozen=True)
 class Plan:
     """One HTMPC solution: predicted q, v (N+1 × 9), u (N × 9), Cartesian paths and diagnostics."""
@@ -291,6 +313,7 @@ class Plan:
     solve_ms: tuple[float, ...]
     status: PlanStatus
     message: str = ""
+    reason: PlanReason = PlanReason.NONE
     min_h: float = float("nan")
     extras: dict[str, float] = field(default_factory=dict)
 

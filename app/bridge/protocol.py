@@ -241,6 +241,8 @@ class PlanOut(BaseModel):
     solve_ms: list[float | None]
     status: str
     message: str
+    reason: str
+    """Why the plan is what it is, for programs (`core.types.PlanReason`: none, no_task, qp_failed, …)."""
     min_h: float | None
 
 

@@ -43,7 +43,8 @@ def plan_out(plan: Plan) -> PlanOut:
                    base_path=json_array(plan.base_path), ee_path=json_array(plan.ee_path),
                    task_errors=json_array(np.asarray(plan.task_errors, dtype=float).reshape(-1)),
                    solve_ms=json_array(np.asarray(plan.solve_ms, dtype=float).reshape(-1)),
-                   status=plan.status.value, message=plan.message, min_h=finite_or_none(plan.min_h))
+                   status=plan.status.value, message=plan.message, reason=plan.reason.value,
+                   min_h=finite_or_none(plan.min_h))
 
 
 def _subtask_out(p: SubtaskProgress) -> SubtaskProgressOut:

@@ -38,6 +38,7 @@ from core.types import (
     ObjectMapSnapshot,
     ObjectStatus,
     Plan,
+    PlanReason,
     PlanStatus,
     Posterior,
     RobotState,
@@ -73,7 +74,8 @@ SCHEMAS: dict[str, dict] = {
                                        {"t": _NUM, "qdot": _arr()}),
     "htmpc.Plan": _obj("HTMPC plan", {
         "t": _NUM, "dt": _NUM, "q": _arr(2), "v": _arr(2), "u": _arr(2), "base_path": _arr(2), "ee_path": _arr(2),
-        "task_errors": _arr(), "solve_ms": _arr(), "status": _STR, "message": _STR, "min_h": _NUM}),
+        "task_errors": _arr(), "solve_ms": _arr(), "status": _STR, "message": _STR, "reason": _STR,
+        "min_h": _NUM}),
     "htmpc.ObjectMap": _obj("object-level map (POCD): consistency = E[v]", {
         "t": _NUM, "removed_ids": {"type": "array", "items": _INT},
         "objects": {"type": "array", "items": _obj("mapped object", {
@@ -168,7 +170,8 @@ def snapshot_messages(snap: Snapshot) -> list[tuple[str, dict]]:
         out.append(("/plan", {"t": p.t, "dt": p.dt, "q": _list(p.q), "v": _list(p.v), "u": _list(p.u),
                               "base_path": _list(p.base_path), "ee_path": _list(p.ee_path),
                               "task_errors": _list(p.task_errors), "solve_ms": _list(p.solve_ms),
-                              "status": p.status.value, "message": p.message, "min_h": _num(p.min_h)}))
+                              "status": p.status.value, "message": p.message, "reason": p.reason.value,
+                              "min_h": _num(p.min_h)}))
     if snap.object_map is not None:
         m = snap.object_map
         out.append(("/map/posterior", {"t": m.t, "removed_ids": list(m.removed_ids), "objects": [
@@ -206,7 +209,7 @@ def _plan(p: dict) -> Plan:
     return Plan(t=p["t"], dt=p["dt"], q=_np(p["q"]), v=_np(p["v"]), u=_np(p["u"]), base_path=_np(p["base_path"]),
                 ee_path=_np(p["ee_path"]), task_errors=tuple(map(_nan, p["task_errors"])),
                 solve_ms=tuple(map(_nan, p["solve_ms"])), status=PlanStatus(p["status"]), message=p["message"],
-                min_h=_nan(p.get("min_h")))
+                reason=PlanReason(p.get("reason", PlanReason.NONE.value)), min_h=_nan(p.get("min_h")))
 
 
 def _object_map(m: dict) -> ObjectMapSnapshot:

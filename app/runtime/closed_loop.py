@@ -69,6 +69,7 @@ from core.types import (
     LocalEDF,
     Observation,
     Plan,
+    PlanReason,
     PlanStatus,
     References,
     ReferenceSurface,
@@ -405,10 +406,11 @@ class ClosedLoop:
         lim, p = self.robot.limits, self.controller.params
         plan = None
         if self.plan is not None and self.moving:
-            plan = brake_along(self.plan, t, lim, p.N, p.dt_s, PlanStatus.STOPPING, "fault: braking along the plan")
+            plan = brake_along(self.plan, t, lim, p.N, p.dt_s, PlanStatus.STOPPING, "fault: braking along the plan",
+                               PlanReason.FAULT)
         if plan is None:
             last = RobotState(t, self.state.q, np.asarray(self.last_qdot, float))
-            plan = braking_plan(last, lim, p.N, p.dt_s, PlanStatus.STOPPING, "fault: braking")
+            plan = braking_plan(last, lim, p.N, p.dt_s, PlanStatus.STOPPING, "fault: braking", reason=PlanReason.FAULT)
         return plan
 
     def guarded(self, stage: str, fn: Callable[..., T], *args) -> T | None:

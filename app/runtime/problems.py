@@ -13,7 +13,7 @@ import threading
 from dataclasses import dataclass
 from enum import StrEnum
 
-from core.types import Plan, PlanStatus
+from core.types import Plan, PlanReason, PlanStatus
 
 
 class ProblemKind(StrEnum):
@@ -45,10 +45,6 @@ _SINGULAR = {ProblemKind.QP_FAILURE: "QP failure", ProblemKind.FALLBACK: "fallba
              ProblemKind.UNKNOWN_SPACE: "unknown space ahead",
              ProblemKind.ANCHORED_TARGET: "anchored target out of reach"}
 
-NORMAL_STOPS = ("no task",)
-"""Braking plans that are not problems: nothing to do (the sequence ended or has not started)."""
-
-
 @dataclass(frozen=True)
 class ProblemCount:
     """How often one kind of problem happened: count, first and last sim time (s), the last message."""
@@ -77,15 +73,16 @@ class ProblemLog:
             self._counts[kind] = ProblemCount(kind, 1 if old is None else old.count + 1, first, t, message)
 
     def observe_plan(self, plan: Plan, t: float, solve_ms: float | None = None) -> None:
-        """Count what one controller step shows: a failed QP (even when an earlier level's plan was kept), a
-        fallback (braking) plan, a solve slower than `slow_solve_ms` (a discarded one says so in its message)."""
+        """Count what one controller step shows, by the plan's `reason` (never by parsing its message): a failed
+        QP (even when an earlier level's plan was kept), a fallback (braking) plan, a solve slower than
+        `slow_solve_ms` (one the controller discarded as too slow has the reason SOLVE_TIMEOUT)."""
         message = plan.message or plan.status.value
-        if "QP failed" in message:
+        if plan.reason == PlanReason.QP_FAILED:
             self.record(ProblemKind.QP_FAILURE, t, message)
         if plan.status in (PlanStatus.FALLBACK, PlanStatus.STOPPING, PlanStatus.FAILED) and \
-                not any(message.startswith(s) for s in NORMAL_STOPS):
+                plan.reason != PlanReason.NO_TASK:  # holding with nothing to do is no problem
             self.record(ProblemKind.FALLBACK, t, message)
-        if "solve took" in message:
+        if plan.reason == PlanReason.SOLVE_TIMEOUT:
             self.record(ProblemKind.SLOW_SOLVE, t, message)
         elif solve_ms is not None and solve_ms > self.slow_solve_ms:
             digits = 0 if round(solve_ms) > round(self.slow_solve_ms) else 1  # never "100 ms (> 100 ms)"

@@ -13,7 +13,8 @@ Public API: `HTMPC(robot, params).solve(state, refs, edf) -> Plan` (edf: anythin
 `distance(p)` and `gradient(p)`, e.g. `core.types.LocalEDF`, or None for no collision rows), `reset()`,
 and `enforce_timeout` (False in lockstep runs: simulated time waits for the solver). A failed QP, an
 exception of any type, a non-finite state or map, a slow solve or an out-of-limit solution gives a braking
-plan along the last plan handed out (status FALLBACK or STOPPING, the reason in `message`; safety.py);
+plan along the last plan handed out (status FALLBACK or STOPPING, why in `reason` (a `PlanReason`), the words
+in `message`; safety.py);
 `counts` tallies them (`SolveCounts`). One solve at a time per instance: the kinematics and the QPs evaluate in
 place on the controller's preallocated buffers (callers serialise steps, e.g. `app.runtime.closed_loop`'s step lock).
 """
@@ -50,7 +51,7 @@ from core.htmpc.safety import brake_along, braking_plan, plan_is_safe
 from core.htmpc.tasks import BaseTask, EEBaseFrameTask, EETask, Linearisation, Task
 from core.params import HTMPCParams
 from core.robot.model import RobotModel
-from core.types import Plan, PlanStatus, References, RobotState
+from core.types import Plan, PlanReason, PlanStatus, References, RobotState
 
 log = logging.getLogger(__name__)
 
@@ -315,11 +316,12 @@ class HTMPC:
         n = len(order)
         if not (np.all(np.isfinite(state.q)) and np.all(np.isfinite(state.v)) and np.isfinite(state.t)):
             self.counts.other_fallbacks += 1
-            return self._fallback(state, n, "non-finite robot state", PlanStatus.STOPPING)
+            return self._fallback(state, n, PlanReason.NON_FINITE_STATE, "non-finite robot state",
+                                  PlanStatus.STOPPING)
         if not order:
             self._previous = None
             return braking_plan(state, self.robot.limits, p.N, p.dt_s, PlanStatus.STOPPING, "no task: holding",
-                                n_levels=0)
+                                n_levels=0, reason=PlanReason.NO_TASK)
         x0 = np.concatenate([state.q, self.robot.limits.clip_velocity(state.v)])
         self.trust_scale = min(1.0, 2.0 * self.trust_scale)
         it = self.warm_start(state)
@@ -345,20 +347,24 @@ class HTMPC:
         except Exception as err:  # any fault inside the solve brakes the robot; a dead control loop does not
             log.exception("HTMPC step raised")
             self.counts.exceptions += 1
-            return self._fallback(state, n, f"controller error: {type(err).__name__}: {err}")
+            return self._fallback(state, n, PlanReason.CONTROLLER_ERROR,
+                                  f"controller error: {type(err).__name__}: {err}")
         elapsed = (time.perf_counter() - t0) * 1e3
         if step is None or step.failed_level == 0:
-            return self._fallback(state, n, step.message if step else "no iteration")
+            if step is None:
+                return self._fallback(state, n, PlanReason.NO_ITERATION, "no iteration")
+            return self._fallback(state, n, PlanReason.QP_FAILED, step.message)
         if self.enforce_timeout and elapsed > p.solve_timeout_ms:
             self.counts.timeouts += 1
             digits = 0 if round(elapsed) > round(p.solve_timeout_ms) else 1  # never "250 ms > 250 ms"
-            return self._fallback(state, n, f"solve took {elapsed:.{digits}f} ms > {p.solve_timeout_ms:.0f} ms")
+            return self._fallback(state, n, PlanReason.SOLVE_TIMEOUT,
+                                  f"solve took {elapsed:.{digits}f} ms > {p.solve_timeout_ms:.0f} ms")
         plan = self._plan(state, order, refs, step, tuple(level_ms),
                           {"sqp_iterations": float(sqp_iterations), "qp_iterations": float(qp_iterations),
                            "hpipm_ms": hpipm_ms})
         if not plan_is_safe(plan, self.robot.limits, tol=1e-4):
             self.counts.other_fallbacks += 1
-            return self._fallback(state, n, "solution outside the limits")
+            return self._fallback(state, n, PlanReason.OUTSIDE_LIMITS, "solution outside the limits")
         self._previous = _Iterate(state.t, step.q, step.v, step.a)
         self.last_step = step
         self._last_plan = plan
@@ -403,19 +409,20 @@ class HTMPC:
         elif worst < 0.25:
             self.trust_scale = min(self.trust_scale * 2.0, 1.0)
 
-    def _fallback(self, state: RobotState, n_levels: int, reason: str,
+    def _fallback(self, state: RobotState, n_levels: int, reason: PlanReason, message: str,
                   status: PlanStatus = PlanStatus.FALLBACK) -> Plan:
         """Keep the previous plan, shifted to now, and stop along it within the limits (safety.py); without
         one (or if it cannot be followed), brake every joint from the measured velocity."""
-        log.warning("HTMPC fallback: %s", reason)
+        log.warning("HTMPC fallback: %s", message)
         p, lim = self.params, self.robot.limits
         self._previous = None
         plan = None
         if self._last_plan is not None and np.isfinite(state.t):
             plan = brake_along(self._last_plan, state.t, lim, p.N, p.dt_s, status,
-                               f"{reason}; braking along the previous plan")
+                               f"{message}; braking along the previous plan", reason)
         if plan is None:
-            plan = braking_plan(state, lim, p.N, p.dt_s, status, f"{reason}; braking", n_levels=n_levels)
+            plan = braking_plan(state, lim, p.N, p.dt_s, status, f"{message}; braking", n_levels=n_levels,
+                                reason=reason)
         self._last_plan = plan
         return plan
 
@@ -437,7 +444,8 @@ class HTMPC:
         status = PlanStatus.SLACK if max_slack > 1e-3 else PlanStatus.OK
         message = step.message or (f"collision slack {max_slack:.3f}" if status == PlanStatus.SLACK else "")
         return Plan(t=state.t, dt=p.dt_s, q=step.q, v=v, u=a, base_path=step.q[:, :3].copy(), ee_path=ee_path,
-                    task_errors=errors, solve_ms=level_ms, status=status, message=message, min_h=step.min_h,
+                    task_errors=errors, solve_ms=level_ms, status=status, message=message,
+                    reason=PlanReason.NONE if step.failed_level is None else PlanReason.QP_FAILED, min_h=step.min_h,
                     extras={"max_slack": max_slack, "levels": float(len(step.level_ms)), **extras})
 
 

@@ -15,11 +15,11 @@ from dataclasses import replace
 import numpy as np
 
 from core.robot.limits import JointLimits
-from core.types import Plan, PlanStatus, RobotState
+from core.types import Plan, PlanReason, PlanStatus, RobotState
 
 
 def braking_plan(state: RobotState, limits: JointLimits, N: int, dt: float, status: PlanStatus, message: str,
-                 ee_path: np.ndarray | None = None, n_levels: int = 0) -> Plan:
+                 ee_path: np.ndarray | None = None, n_levels: int = 0, reason: PlanReason = PlanReason.NONE) -> Plan:
     """A plan that brings every joint from state.v to rest at most at a_max, all stopping at the same time."""
     q0 = np.where(np.isfinite(state.q), state.q, 0.0)
     v0 = limits.clip_velocity(np.asarray(state.v, float))
@@ -35,7 +35,7 @@ def braking_plan(state: RobotState, limits: JointLimits, N: int, dt: float, stat
     ee = ee_path if ee_path is not None else np.zeros((N + 1, 3))
     return Plan(t=state.t if np.isfinite(state.t) else 0.0, dt=dt, q=q, v=v, u=u,
                 base_path=q[:, :3].copy(), ee_path=ee, task_errors=tuple([np.nan] * n_levels),
-                solve_ms=tuple([0.0] * n_levels), status=status, message=message)
+                solve_ms=tuple([0.0] * n_levels), status=status, message=message, reason=reason)
 
 
 def plan_is_safe(plan: Plan, limits: JointLimits, tol: float = 1e-6) -> bool:
@@ -80,7 +80,7 @@ def _braking_time(plan: Plan, s0: float, limits: JointLimits, samples: int = 200
 
 
 def brake_along(plan: Plan, t: float, limits: JointLimits, N: int, dt: float, status: PlanStatus,
-                message: str) -> Plan | None:
+                message: str, reason: PlanReason = PlanReason.NONE) -> Plan | None:
     """The previous `plan`, shifted to time t, slowed down to a stop along its own path within a_max.
 
     A plan that is already a braking plan (FALLBACK or STOPPING) is returned unchanged but for its status
@@ -88,7 +88,7 @@ def brake_along(plan: Plan, t: float, limits: JointLimits, N: int, dt: float, st
     T_b, or a stop that would not fit in N·dt).
     """
     if plan.status in (PlanStatus.FALLBACK, PlanStatus.STOPPING):
-        return replace(plan, status=status, message=message)
+        return replace(plan, status=status, message=message, reason=reason)
     s0 = t - plan.t
     if not (np.isfinite(s0) and 0.0 <= s0 <= plan.dt * plan.u.shape[0]):
         return None
@@ -107,4 +107,4 @@ def brake_along(plan: Plan, t: float, limits: JointLimits, N: int, dt: float, st
     ee = plan.ee_path[np.clip(np.round(s / plan.dt).astype(int), 0, len(plan.ee_path) - 1)]
     return Plan(t=t, dt=dt, q=q, v=v, u=u, base_path=q[:, :3].copy(), ee_path=ee,
                 task_errors=plan.task_errors, solve_ms=tuple(0.0 for _ in plan.solve_ms), status=status,
-                message=message, extras={"braking_time_s": t_b})
+                message=message, reason=reason, extras={"braking_time_s": t_b})

@@ -11,25 +11,27 @@ from app.runtime import Runtime, RuntimeConfig
 from app.runtime.problems import ProblemKind, ProblemLog, summary_line
 from app.runtime.snapshot import RunState
 from core.sim.scene import Scene
-from core.types import Plan, PlanStatus
+from core.types import Plan, PlanReason, PlanStatus
 from tasks import BasePose, BaseSubtask, TaskSequence
 
 GOAL = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=2.0, y=0.0), timeout_s=30.0)])
 
 
-def plan(status: PlanStatus, message: str = "") -> Plan:
+def plan(status: PlanStatus, message: str = "", reason: PlanReason = PlanReason.NONE) -> Plan:
     z = np.zeros((11, 9))
-    return Plan(0.0, 0.3, z, z, z[:10], z[:, :3], z[:, :3], (0.0,), (1.0,), status, message)
+    return Plan(0.0, 0.3, z, z, z[:10], z[:, :3], z[:, :3], (0.0,), (1.0,), status, message, reason)
 
 
 def test_plan_classification():
     log = ProblemLog(slow_solve_ms=100.0)
     log.observe_plan(plan(PlanStatus.OK), 0.1, 5.0)
-    log.observe_plan(plan(PlanStatus.STOPPING, "no task: holding"), 0.2)
+    log.observe_plan(plan(PlanStatus.STOPPING, "no task: holding", PlanReason.NO_TASK), 0.2)
     assert log.counts() == ()
-    log.observe_plan(plan(PlanStatus.OK, "level 2 QP failed (1)"), 1.0, 5.0)  # level 1's plan kept
-    log.observe_plan(plan(PlanStatus.FALLBACK, "level 1 QP failed (1); braking along the previous plan"), 2.0)
-    log.observe_plan(plan(PlanStatus.FALLBACK, "solve took 312 ms > 250 ms; braking"), 3.0, 312.0)
+    log.observe_plan(plan(PlanStatus.OK, "level 2 QP failed (1)", PlanReason.QP_FAILED), 1.0, 5.0)  # level 1 kept
+    log.observe_plan(plan(PlanStatus.FALLBACK, "level 1 QP failed (1); braking along the previous plan",
+                          PlanReason.QP_FAILED), 2.0)
+    log.observe_plan(plan(PlanStatus.FALLBACK, "solve took 312 ms > 250 ms; braking", PlanReason.SOLVE_TIMEOUT),
+                     3.0, 312.0)
     log.observe_plan(plan(PlanStatus.OK), 4.0, 180.0)
     by_kind = {c.kind: c for c in log.counts()}
     assert by_kind[ProblemKind.QP_FAILURE].count == 2 and by_kind[ProblemKind.QP_FAILURE].first_t == 1.0
@@ -42,6 +44,19 @@ def test_plan_classification():
     assert table["qp_failure"]["count"] == 2
     assert list(table) == [k.value for k in ProblemKind]  # every kind, with its count
     assert table["watchdog"] == {"count": 0, "first_t": None, "last_t": None, "last_message": ""}
+
+
+def test_counts_follow_the_reason_not_the_wording():
+    """Rewording a plan's message changes no count: the log reads `Plan.reason` (issue 24, typed reasons)."""
+    log = ProblemLog(slow_solve_ms=100.0)
+    log.observe_plan(plan(PlanStatus.OK, "QP failed? solve took? no task?"), 0.1, 5.0)  # words alone: nothing
+    log.observe_plan(plan(PlanStatus.STOPPING, "holding", PlanReason.NO_TASK), 0.2)
+    assert log.counts() == ()
+    log.observe_plan(plan(PlanStatus.FALLBACK, "hpipm gave up", PlanReason.QP_FAILED), 1.0)
+    log.observe_plan(plan(PlanStatus.FALLBACK, "too slow", PlanReason.SOLVE_TIMEOUT), 2.0, 300.0)
+    log.observe_plan(plan(PlanStatus.STOPPING, "state was NaN", PlanReason.NON_FINITE_STATE), 3.0)
+    by_kind = {c.kind: c.count for c in log.counts()}
+    assert by_kind == {ProblemKind.QP_FAILURE: 1, ProblemKind.FALLBACK: 3, ProblemKind.SLOW_SOLVE: 1}
 
 
 def test_plurals_and_a_threshold_never_read_as_equal():
@@ -64,7 +79,7 @@ def test_controller_problems_reach_the_snapshot_and_the_report(tmp_path):
         calls["n"] += 1
         out = solve(state, refs, edf)
         if calls["n"] % 5 == 0:  # every fifth step: a level-1 QP failure and its braking plan
-            return rt.controller._fallback(state, 2, "level 1 QP failed (3)")
+            return rt.controller._fallback(state, 2, PlanReason.QP_FAILED, "level 1 QP failed (3)")
         return out
 
     rt.controller.solve = flaky

@@ -12,7 +12,7 @@ from core.sim.ground_truth import ground_truth_edf
 from core.sim.scene import Box, Scene
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
-from core.types import BaseReference, LocalEDF, Plan, PlanStatus, References, RobotState
+from core.types import BaseReference, LocalEDF, Plan, PlanReason, PlanStatus, References, RobotState
 from tests.core.htmpc.conftest import lockstep
 
 DRIVE = References(order=("base", "ee"), base=BaseReference(np.array([[4.0, 0.0]]), np.zeros(1)))
@@ -44,7 +44,7 @@ def test_broken_map_makes_the_qp_fail_and_the_robot_brake(robot):
     c = lockstep(HTMPC(robot))
     state = moving_state(robot)
     plan = c.solve(state, DRIVE, broken)
-    assert plan.status == PlanStatus.FALLBACK and "braking" in plan.message
+    assert plan.status == PlanStatus.FALLBACK and "braking" in plan.message and plan.reason == PlanReason.QP_FAILED
     assert_brakes(robot, plan, state)
     assert_commands_safe(robot, plan)
 
@@ -68,6 +68,7 @@ def test_any_exception_in_the_solve_brakes(robot, error):
     state = moving_state(robot)
     plan = c.solve(state, DRIVE, RaisingMap(error))
     assert plan.status == PlanStatus.FALLBACK and type(error).__name__ in plan.message
+    assert plan.reason == PlanReason.CONTROLLER_ERROR
     assert_brakes(robot, plan, state)
     assert_commands_safe(robot, plan)
 
@@ -78,6 +79,7 @@ def test_nan_state_stops(robot):
     q[4] = np.nan
     plan = c.solve(RobotState(2.0, q, np.full(9, np.nan)), DRIVE, None)
     assert plan.status == PlanStatus.STOPPING and "non-finite" in plan.message
+    assert plan.reason == PlanReason.NON_FINITE_STATE
     assert np.all(plan.v == 0.0)
     assert_commands_safe(robot, plan)
 
@@ -87,6 +89,7 @@ def test_timeout_discards_the_solution(robot):
     state = moving_state(robot)
     plan = c.solve(state, DRIVE, None)
     assert plan.status == PlanStatus.FALLBACK and "took" in plan.message
+    assert plan.reason == PlanReason.SOLVE_TIMEOUT
     assert_brakes(robot, plan, state)
 
 
@@ -168,6 +171,7 @@ def test_qp_failure_in_closed_loop_brakes_along_the_previous_plan(robot):
             plans.append(plan)
             if k >= 300:
                 assert plan.status == PlanStatus.FALLBACK and "QP failed" in plan.message, plan.message
+                assert plan.reason == PlanReason.QP_FAILED
         qdot = plan.velocity_at(sim.observe().state.t)
         commands.append(qdot)
         assert np.all(np.isfinite(qdot)) and np.all(np.abs(qdot) <= robot.limits.v_max + 1e-9)
