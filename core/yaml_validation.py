@@ -11,6 +11,8 @@ from typing import TypeVar
 import yaml
 from pydantic import BaseModel, ValidationError
 
+from core.errors import StudioError
+
 M = TypeVar("M", bound=BaseModel)
 
 MAX_DEPTH = 50
@@ -19,7 +21,7 @@ pydantic recurse once a level and hit Python's recursion limit near 300–500 le
 refused from the event stream (which PyYAML parses without recursion) before either sees it."""
 
 
-class FileFormatError(ValueError):
+class FileFormatError(StudioError, ValueError):
     """A task or scene file that does not follow its schema; `problems` lists (field, line, message)."""
 
     def __init__(self, source: str, problems: list[tuple[str, int | None, str]]) -> None:

@@ -12,13 +12,14 @@ import math
 
 import numpy as np
 
+from core.errors import StudioError
 from tasks.occupancy import OccupancyGrid
 
 _MOVES = [(-1, 0, 1.0), (1, 0, 1.0), (0, -1, 1.0), (0, 1, 1.0),
           (-1, -1, math.sqrt(2)), (-1, 1, math.sqrt(2)), (1, -1, math.sqrt(2)), (1, 1, math.sqrt(2))]
 
 
-class NoPathError(RuntimeError):
+class NoPathError(StudioError, RuntimeError):
     """No collision-free base path exists on the current map."""
 
 

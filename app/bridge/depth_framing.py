@@ -21,6 +21,7 @@ import numpy as np
 from pydantic import ValidationError
 
 from app.bridge.protocol import DepthEncoding, DepthFrameHeader, validation_text
+from core.errors import StudioError
 from core.types import DepthFrame
 
 MAGIC = b"HDF1"
@@ -31,7 +32,7 @@ RIGID_TOLERANCE = 1e-3
 """How far T_world_camera's rotation may be from orthonormal, and its last row from [0, 0, 0, 1]."""
 
 
-class FrameFormatError(ValueError):
+class FrameFormatError(StudioError, ValueError):
     """A binary message that is not a valid depth frame; the message says what is wrong."""
 
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from app.bridge.protocol import STALE_AFTER_S, Ack, Command, CommandReason, RejectionCode, StateMessage
+from core.errors import StudioError
 from core.types import NQ, DepthFrame, Odometry, RobotState
 
 log = logging.getLogger(__name__)
@@ -31,7 +32,7 @@ PENDING_ACKS = 1024
 """Sent commands remembered for their acks (older ones are forgotten, never measured)."""
 
 
-class MessageRejectedError(ValueError):
+class MessageRejectedError(StudioError, ValueError):
     """A message that validated but cannot be accepted (e.g. time going backwards); `code` names the kind."""
 
     def __init__(self, code: RejectionCode, message: str) -> None:
@@ -39,7 +40,7 @@ class MessageRejectedError(ValueError):
         self.code: RejectionCode = code
 
 
-class LinkBusyError(RuntimeError):
+class LinkBusyError(StudioError, RuntimeError):
     """A second driver tried to connect while one is connected."""
 
 

@@ -27,11 +27,16 @@ from app.bridge.watchdog import StaleStateWatchdog
 from app.bridge.web_app import create_app
 from app.runtime.problems import ProblemKind
 from app.runtime.snapshot import RunState
+from core.errors import StudioError
 
 if TYPE_CHECKING:
     from app.runtime import Runtime
 
 log = logging.getLogger(__name__)
+
+
+class BridgeStartError(StudioError, RuntimeError):
+    """The hardware bridge could not start serving (the port taken, or the server thread died)."""
 
 
 class _DenialLogFilter(logging.Filter):
@@ -95,7 +100,7 @@ class BridgeServer:
         return f"ws://{self.host}:{self.port}/robot"
 
     def start(self, timeout_s: float = 15.0) -> None:
-        """Serve in a background thread; returns once listening (RuntimeError if it cannot)."""
+        """Serve in a background thread; returns once listening (`BridgeStartError`, a RuntimeError, if it cannot)."""
         _quiet_denials()
         config = uvicorn.Config(self.app, host=self.host, port=self._port, log_level=self._log_level,
                                 ws="websockets-sansio", lifespan="off")
@@ -105,7 +110,7 @@ class BridgeServer:
         deadline = time.monotonic() + timeout_s
         while not self._server.started:
             if not self._thread.is_alive() or time.monotonic() > deadline:
-                raise RuntimeError(f"the hardware bridge could not start on {self.host}:{self._port}")
+                raise BridgeStartError(f"the hardware bridge could not start on {self.host}:{self._port}")
             time.sleep(0.01)
         self.watchdog.start()
         log.info("hardware bridge on %s (token from %s)", self.url, self.token_info.source)

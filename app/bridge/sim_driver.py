@@ -31,6 +31,7 @@ from app.bridge.auth import TOKEN_ENV, read_token
 from app.bridge.driver_client import DriverClient
 from app.bridge.protocol import Command, DepthEncoding
 from app.thread_priority import set_thread_niceness
+from core.errors import StudioError
 from core.params import SimParams
 from core.robot.model import RobotModel
 from core.sim.scene import load_scene
@@ -45,7 +46,7 @@ EXIT_NO_CONNECTION = 2
 MAX_LAG_S = 0.1
 
 
-class LinkLostError(ConnectionError):
+class LinkLostError(StudioError, ConnectionError):
     """The link to the bridge closed or failed."""
 
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from app.recording.recorder import read_recording
 from app.runtime.snapshot import Snapshot
+from core.errors import NotSupportedError
 from core.params import MappingParams
 from core.robot.model import RobotModel
 from core.types import RobotState
@@ -177,7 +178,7 @@ class ReplaySource:
         self.config = replace(self.config, speed=float(speed))
 
     def _refuse(self, *_, **__) -> NoReturn:
-        raise RuntimeError("this is a replay: scene, sequence and map edits need a live run")
+        raise NotSupportedError("this is a replay: scene, sequence and map edits need a live run")
 
     configure = set_sequence = add_box = move_box = remove_box = randomise_scene = scene = _refuse
 

@@ -53,6 +53,7 @@ from app.runtime.run_log import RunLog
 from app.runtime.snapshot import RunState
 from app.runtime.unknown_ahead import planner_points, unknown_ahead
 from app.target_check import recheck_anchored
+from core.errors import StudioError
 from core.htmpc.safety import brake_along, braking_plan
 from core.localization import Localizer, se2
 from core.mapping.frame_exposure import at_exposure
@@ -94,7 +95,7 @@ MOVING_STATES = (RunState.RUNNING, RunState.FAULT)
 """Run states in which the active plan is commanded (FAULT: the braking plan)."""
 
 
-class FaultError(RuntimeError):
+class FaultError(StudioError, RuntimeError):
     """Start refused: the run is in `RunState.FAULT` (the message says why); Reset clears it."""
 
 

@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from core.errors import StudioError
 from core.mapping.world_map import WorldMap
 from core.types import LocalEDF, ObjectMapSnapshot, Observation
 
@@ -51,7 +52,7 @@ map (which keeps only the newest frame of each camera) updates less often, rathe
 robot's driver running late. Measured in bench/closed_loop.py."""
 
 
-class MapProcessError(RuntimeError):
+class MapProcessError(StudioError, RuntimeError):
     """The mapping process failed, died or did not answer."""
 
 

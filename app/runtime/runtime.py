@@ -40,6 +40,7 @@ from app.runtime.run_log import RunLog
 from app.runtime.snapshot import RunState, Snapshot
 from app.runtime.snapshot_builder import build_snapshot, status_line
 from app.target_check import check_targets
+from core.errors import NotSupportedError
 from core.mapping.world_map import WorldMap
 from core.params import ConstraintKind
 from core.robot.model import RobotModel
@@ -290,7 +291,7 @@ class Runtime:
     def set_speed(self, speed: float) -> None:
         """Live mode: sim seconds per wall second (simulation only: a real robot runs in real time)."""
         if self.world is None:
-            raise RuntimeError("speed applies to the simulation; a real robot runs in real time")
+            raise NotSupportedError("speed applies to the simulation; a real robot runs in real time")
         loop = self._loop
         with loop.lock:
             loop.config = replace(loop.config, speed=float(speed))
@@ -334,9 +335,9 @@ class Runtime:
     # --- scene edits (simulation only) -------------------------------------------------------------
 
     def require_world(self) -> SimWorld:
-        """The simulated world; a RuntimeError when this runtime drives a real robot."""
+        """The simulated world; `NotSupportedError` (a RuntimeError) when this runtime drives a real robot."""
         if self.world is None:
-            raise RuntimeError("scene edits need the embedded simulation (this runtime drives a real robot)")
+            raise NotSupportedError("scene edits need the embedded simulation (this runtime drives a real robot)")
         return self.world
 
     def add_box(self, box: Box) -> None:
@@ -369,7 +370,7 @@ class Runtime:
         a faulted runtime refuses to run (`FaultError`) until `reset`.
         """
         if not isinstance(self.backend, SimRobot):
-            raise RuntimeError("lockstep needs the embedded simulation")
+            raise NotSupportedError("lockstep needs a backend that steps (the embedded simulation)")
         loop = self._loop
         p = loop.controller.params
         dt_cmd = 1.0 / p.command_rate_hz

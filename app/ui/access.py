@@ -33,6 +33,8 @@ import websockets.asyncio.server as ws_server
 from websockets.datastructures import Headers
 from websockets.http11 import Request, Response
 
+from core.errors import NotSupportedError
+
 LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1"})
 _CONSTRUCTION = threading.Lock()
 
@@ -160,6 +162,6 @@ def guarded_viser_server(access: PageAccess, **kwargs) -> viser.ViserServer:
             ws_server.serve = original
     if not guard.installed:
         server.stop()
-        raise RuntimeError("viser no longer serves through websockets.asyncio.server.serve with its own "
+        raise NotSupportedError("viser no longer serves through websockets.asyncio.server.serve with its own "
                            "process_request: the studio page cannot be guarded, so it is not served")
     return server

@@ -13,6 +13,7 @@ from functools import cached_property
 import numpy as np
 import pinocchio as pin
 
+from core.errors import StudioError
 from core.params import RobotParams
 from core.robot.collision_boxes import CollisionBox, base_boxes
 from core.robot.collision_spheres import SPHERES, CollisionSphere
@@ -25,6 +26,10 @@ ARM_JOINTS = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist
 
 # Camera frames: rotation from the parent frame to OpenCV camera axes (z forward along parent x).
 _R_X_FORWARD_TO_CV = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+
+
+class RobotModelError(StudioError, RuntimeError):
+    """The URDF does not describe the 9-joint robot (base x, y, yaw and the UR10's six joints)."""
 
 
 @dataclass(frozen=True)
@@ -101,7 +106,7 @@ class RobotModel:
         self.params = params or RobotParams()
         self.model = _build(self.params)
         if self.model.nq != self.nq:
-            raise RuntimeError(f"expected 9 joints, the URDF gave {self.model.nq}")
+            raise RobotModelError(f"expected 9 joints, the URDF gave {self.model.nq}")
         self.limits = _limits(self.model, self.params)
         self.spheres: tuple[CollisionSphere, ...] = SPHERES
         self.boxes: tuple[CollisionBox, ...] = base_boxes(self.params)

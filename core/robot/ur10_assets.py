@@ -12,6 +12,8 @@ import sysconfig
 from functools import cache
 from pathlib import Path
 
+from core.errors import StudioError
+
 _RELATIVE = Path("cmeel.prefix/share/example-robot-data/robots/ur_description")
 ARM_LINKS = ("base_link", "shoulder_link", "upper_arm_link", "forearm_link", "wrist_1_link", "wrist_2_link",
              "wrist_3_link")
@@ -21,7 +23,7 @@ _MESH_STEM = {"base_link": "base", "shoulder_link": "shoulder", "upper_arm_link"
               "wrist_3_link": "wrist3"}
 
 
-class RobotAssetsNotFoundError(FileNotFoundError):
+class RobotAssetsNotFoundError(StudioError, FileNotFoundError):
     """The example-robot-data files are not installed where we look for them."""
 
 

@@ -12,7 +12,13 @@ import os
 import subprocess
 import sys
 
+from core.errors import StudioError
+
 log = logging.getLogger(__name__)
+
+
+class GLBackendError(StudioError, RuntimeError):
+    """No off-screen OpenGL backend works for MuJoCo (the message names the Debian packages to install)."""
 
 _PROBE = "import mujoco; c = mujoco.GLContext(8, 8); c.make_current(); c.free(); print('ok')"
 
@@ -39,7 +45,7 @@ def choose_gl_backend() -> str:
             os.environ.setdefault("PYOPENGL_PLATFORM", backend)
             log.info("MuJoCo off-screen rendering through %s", backend)
             return backend
-    raise RuntimeError(
+    raise GLBackendError(
         "No off-screen OpenGL for MuJoCo: EGL and OSMesa both failed. "
         "Install Debian's libegl1 and libgl1-mesa-dri (EGL) or libosmesa6 (OSMesa)."
     )

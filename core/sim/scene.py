@@ -16,10 +16,16 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from scipy import ndimage
 
 from core.atomic_file import write_text_atomic
+from core.errors import StudioError
 from core.yaml_validation import dump_yaml_model, load_yaml_file, load_yaml_model
 
 PAPER_BOX_M = 0.6
 """Edge of the paper's boxes (m)."""
+
+
+
+class SceneGenerationError(StudioError, RuntimeError):
+    """No passable random scene was found within the tries given (try another seed or fewer boxes)."""
 
 
 @dataclass(frozen=True)
@@ -203,7 +209,7 @@ def random_scene(seed: int, n_boxes: int = 8, area_m: float = 5.0, two_layers: b
         if _passable(boxes, start, goal, clearance_m, bounds):
             return Scene(tuple(boxes), robot_start=(*start, 0.0), name=f"random_{seed}", goal=goal,
                          metadata={"seed": float(seed), "area_m": area_m})
-    raise RuntimeError(f"no passable random scene with {n_boxes} boxes after {max_tries} tries (seed {seed})")
+    raise SceneGenerationError(f"no passable random scene with {n_boxes} boxes after {max_tries} tries (seed {seed})")
 
 
 def aisle_scene(length_m: float = 6.0, width_m: float = 3.0, aisle_m: float = 1.9, depth_m: float = PAPER_BOX_M,

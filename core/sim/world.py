@@ -20,6 +20,7 @@ from dataclasses import dataclass, replace
 import mujoco
 import numpy as np
 
+from core.errors import StudioError
 from core.params import SimParams
 from core.robot.model import RobotModel
 from core.sim.scene import Box, Scene
@@ -32,7 +33,7 @@ VELOCITY_TIME_CONSTANT_S = 0.002
 """Velocity actuators are tuned per joint (kv = M_ii / tau) so each joint tracks within a few physics steps."""
 
 
-class SceneEditError(ValueError):
+class SceneEditError(StudioError, ValueError):
     """A scene edit that cannot be applied (unknown id, bad numbers, a box inside the robot)."""
 
 
