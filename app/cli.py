@@ -47,7 +47,7 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter):
 
 def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scene", type=Path, default=None,
-                        help="scene YAML (default: the sequence's scene, else core/sim/scenes/default.yaml)")
+                        help="scene YAML (default: the sequence's scene, else core/scenes/default.yaml)")
     parser.add_argument("--sequence", type=Path, default=DEFAULT_SEQUENCE, help="task sequence YAML")
     parser.add_argument("--map", dest="map_kind", choices=MAP_KINDS, default="object",
                         help="map the controller uses (object: POCD, voxel: the static baseline, ground_truth: the "

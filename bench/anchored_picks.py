@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from app.runtime import Runtime, RuntimeConfig
-from core.sim.scene import load_scene
+from core.scene import load_scene
 from tasks.anchors import MapObjects, ObjectView, anchor_position, resolve_subtask
 from tasks.schema import Anchor, EESubtask, TaskSequence
 from tasks.sequence_file import EXAMPLES_DIR, load_sequence

@@ -21,7 +21,7 @@ from app.runtime.snapshot import RunState
 from bench.bridge_driving import drive
 from bench.report import percentile, write_result
 from core.params import MappingParams
-from core.sim.scene import PAPER_BOX_M, Box, Scene, random_scene
+from core.scene import PAPER_BOX_M, Box, Scene, random_scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 from tasks.sequence_file import EXAMPLES_DIR, load_sequence
 

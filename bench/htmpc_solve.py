@@ -47,9 +47,9 @@ from core.htmpc import HTMPC
 from core.htmpc.ipopt_reference import IpoptReference
 from core.params import HTMPCParams, SensorParams
 from core.robot.model import READY_Q, RobotModel
+from core.scene import random_scene
 from core.sim.collision_cover import cover_gaps
 from core.sim.ground_truth import ground_truth_edf
-from core.sim.scene import random_scene
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
 from core.types import PlanStatus, References

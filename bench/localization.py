@@ -34,7 +34,7 @@ from core.localization.gates import FAILURES, Verdict
 from core.localization.localizer import DEGENERATE
 from core.localization.se2 import wrap
 from core.params import LocalizationParams
-from core.sim.scene import Box
+from core.scene import Box
 from core.types import ReferenceSurface
 
 log = logging.getLogger(__name__)

@@ -56,9 +56,9 @@ from core.mapping.scene_points import ScenePoints
 from core.mapping.segmentation import connected_voxels, voxelise
 from core.params import CameraParams, MappingParams, SensorParams, SimParams
 from core.robot.model import READY_Q, RobotModel
+from core.scene import Box, Scene, aisle_scene, random_scene
 from core.sim.depth_camera import DepthCamera
 from core.sim.ground_truth import box_signed_distance, ground_truth_edf, scene_signed_distance
-from core.sim.scene import Box, Scene, aisle_scene, random_scene
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
 from core.types import LocalEDF, Observation

@@ -21,8 +21,8 @@ from core.htmpc import HTMPC
 from core.htmpc.so3 import log3
 from core.params import SensorParams
 from core.robot.model import READY_Q, RobotModel
+from core.scene import Box, Scene
 from core.sim.ground_truth import ground_truth_edf
-from core.sim.scene import Box, Scene
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
 from core.types import BaseReference, EEReference, References

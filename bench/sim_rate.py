@@ -14,8 +14,8 @@ import core.sim  # noqa: F401  (GL backend first)
 from bench.report import bench_args, write_result
 from core.params import SimParams
 from core.robot.model import READY_Q, RobotModel
+from core.scene import Box, random_scene
 from core.sim.depth_camera import DepthCamera
-from core.sim.scene import Box, random_scene
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
 

@@ -18,7 +18,7 @@ import core.sim  # noqa: F401  (GL backend first)
 from app.runtime import Runtime, RuntimeConfig
 from app.ui.studio import DETAILED_VIEW, Studio, ViewSettings
 from bench.report import bench_args, write_result
-from core.sim.scene import random_scene
+from core.scene import random_scene
 from tasks.sequence_file import EXAMPLES_DIR, load_sequence
 
 CHROMIUM = "/usr/bin/chromium"

@@ -25,7 +25,7 @@ from app.runtime import Runtime, RuntimeConfig
 from bench.report import bench_args, percentile, write_result
 from core.mapping.unknown_floor import UnknownFloor, unknown_columns
 from core.params import MappingParams, SequencerParams
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 
 WALL = Box("dark_wall", (5.0, 0.0, 0.5), (0.4, 12.0, 1.0), dark=True)

@@ -34,13 +34,13 @@ from app.thread_priority import set_thread_niceness
 from core.errors import StudioError
 from core.params import SimParams
 from core.robot.model import RobotModel
-from core.sim.scene import load_scene
+from core.scene import load_scene
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
 
 log = logging.getLogger("app.bridge.sim_driver")
 
-DEFAULT_SCENE = Path(__file__).parents[2] / "core" / "sim" / "scenes" / "default.yaml"
+DEFAULT_SCENE = Path(__file__).parents[2] / "core" / "scenes" / "default.yaml"
 EXIT_LINK_LOST = 3
 EXIT_NO_CONNECTION = 2
 MAX_LAG_S = 0.1

@@ -21,7 +21,7 @@ from app.bridge.protocol import (
 )
 from app.bridge.robot_link import RobotLink
 from app.runtime.snapshot import Snapshot
-from core.sim.scene import Scene
+from core.scene import Scene
 from core.types import Plan
 from tasks.sequencer import SubtaskProgress
 

@@ -60,7 +60,7 @@ from app.ui.colors import consistency_rgb
 from core.params import MappingParams
 from core.robot.model import RobotModel
 from core.robot.ur10_assets import ARM_LINKS, ur10_mesh
-from core.sim.scene import Box
+from core.scene import Box
 from core.types import DepthFrame, ObjectMapSnapshot, ObjectStatus, Plan
 
 WORLD = "world"

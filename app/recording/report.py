@@ -16,7 +16,7 @@ import numpy as np  # noqa: E402
 from app.runtime.problems import ProblemKind, ProblemLog  # noqa: E402
 from app.runtime.run_log import RunLog  # noqa: E402
 from core.atomic_file import atomic_output, write_text_atomic  # noqa: E402
-from core.sim.scene import Box  # noqa: E402
+from core.scene import Box  # noqa: E402
 
 
 def _draw_boxes(ax, boxes: tuple[Box, ...]) -> None:

@@ -31,7 +31,7 @@ import numpy as np
 from app.object_label import object_label
 from app.runtime.problems import ProblemCount, ProblemKind
 from app.runtime.snapshot import EDFSlice, RunState, Snapshot
-from core.sim.scene import Box
+from core.scene import Box
 from core.types import (
     DepthFrame,
     MappedObject,

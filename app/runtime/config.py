@@ -22,7 +22,7 @@ from core.params import (
 __all__ = ["CONSTRAINT_KINDS", "DEFAULT_SCENE", "DEFAULT_SEQUENCE", "ROOT", "RuntimeConfig"]
 
 ROOT = Path(__file__).parents[2]
-DEFAULT_SCENE = ROOT / "core" / "sim" / "scenes" / "default.yaml"
+DEFAULT_SCENE = ROOT / "core" / "scenes" / "default.yaml"
 DEFAULT_SEQUENCE = ROOT / "tasks" / "examples" / "two_pickups.yaml"
 CONSTRAINT_KINDS: tuple[ConstraintKind, ...] = typing.get_args(ConstraintKind)
 SPEED_RANGE = (0.05, 20.0)

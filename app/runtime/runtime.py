@@ -44,7 +44,7 @@ from core.errors import NotSupportedError
 from core.mapping.world_map import WorldMap
 from core.params import ConstraintKind
 from core.robot.model import RobotModel
-from core.sim.scene import Box, Scene, load_scene, random_scene
+from core.scene import Box, Scene, load_scene, random_scene
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
 from core.types import NQ, DepthFrame, LocalEDF, Plan, RobotBackend, RobotState

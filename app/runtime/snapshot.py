@@ -12,7 +12,7 @@ import numpy as np
 
 from app.runtime.problems import ProblemCount
 from app.runtime.target_marks import TargetMark
-from core.sim.scene import Box
+from core.scene import Box
 from core.types import DepthFrame, ObjectMapSnapshot, Plan, RobotState
 from tasks.anchors import MapObjects
 from tasks.sequencer import SubtaskProgress

@@ -16,7 +16,7 @@ from app.recording.replay import ReplaySource
 from app.runtime import Runtime
 from app.runtime.snapshot import Snapshot
 from app.ui.notify import guarded, notify_all
-from core.sim.scene import Box, parse_scene, scene_to_yaml
+from core.scene import Box, parse_scene, scene_to_yaml
 from core.types import vec3
 
 NONE: str = "(none)"

@@ -7,7 +7,7 @@ from collections.abc import Callable
 
 import viser
 
-from core.sim.scene import Box
+from core.scene import Box
 
 BOX_RGB = (194, 153, 107)
 DARK_BOX_RGB = (20, 20, 23)

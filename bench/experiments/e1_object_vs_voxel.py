@@ -46,7 +46,7 @@ from bench.experiments.report_files import (
     write_markdown,
 )
 from bench.experiments.trials import Trial, experiment_args, quiet_logs, runtime_config, trial_results, tunables
-from core.sim.scene import Box, random_scene
+from core.scene import Box, random_scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 
 log = logging.getLogger(__name__)

@@ -3,7 +3,7 @@
     python -m bench.experiments.e2_cbf_vs_edf [--quick] [--workers N] [--ray ADDRESS] [--maps M ...] [--no-sweep]
 
 The paper's protocol: 15 seeded random scenes (8 boxes of 0.6 m, one or two layers, in 5 × 5 m;
-`core.sim.scene.random_scene`) × 3 reference speeds = 45 trials, each with the CBF constraint
+`core.scene.random_scene`) × 3 reference speeds = 45 trials, each with the CBF constraint
 (dh/dt ≥ −gamma h, gamma 1) and the EDF baseline (h ≥ 0), both with delta 0.25 m, on the ground-truth
 map (the simulator's exact EDF, exact odometry), on the perceived object-level map (POCD from the two
 depth cameras through the sensor model: depth noise 0.005 z², 2 % dropouts, flying pixels, odometry
@@ -50,7 +50,7 @@ from bench.experiments.report_files import (
 )
 from bench.experiments.trials import Trial, experiment_args, quiet_logs, runtime_config, trial_results, tunables
 from core.params import MappingParams
-from core.sim.scene import random_scene
+from core.scene import random_scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 
 log = logging.getLogger(__name__)

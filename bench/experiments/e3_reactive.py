@@ -56,7 +56,7 @@ from bench.experiments.report_files import (
     write_markdown,
 )
 from bench.experiments.trials import Trial, experiment_args, quiet_logs, runtime_config, trial_results, tunables
-from core.sim.scene import PAPER_BOX_M, Box, Scene
+from core.scene import PAPER_BOX_M, Box, Scene
 from core.sim.world import CollisionEvent, SceneEditError
 from tasks import BasePose, BaseSubtask, TaskSequence
 

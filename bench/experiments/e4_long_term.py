@@ -45,7 +45,7 @@ from bench.experiments.report_files import (
     write_markdown,
 )
 from bench.experiments.trials import Trial, experiment_args, quiet_logs, runtime_config, trial_results
-from core.sim.scene import PAPER_BOX_M, Box, Scene, aisle_scene
+from core.scene import PAPER_BOX_M, Box, Scene, aisle_scene
 from tasks import BasePose, BaseSubtask, EEPose, EESubtask, TaskSequence, Tolerance
 from tasks.sequence_file import EXAMPLES_DIR, load_sequence
 from tasks.sequencer import Outcome

@@ -19,7 +19,7 @@ import numpy as np
 from app.runtime.run_log import RunLog
 from app.runtime.snapshot import RunState
 from core.htmpc.htmpc import SolveCounts
-from core.sim.scene import Box
+from core.scene import Box
 from core.sim.world import CollisionEvent, SimWorld
 from core.types import DepthFrame
 

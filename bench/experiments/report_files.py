@@ -28,7 +28,7 @@ import numpy as np  # noqa: E402
 from bench.experiments.trials import ROOT  # noqa: E402
 from bench.report import machine  # noqa: E402
 from core.atomic_file import atomic_output, write_text_atomic  # noqa: E402
-from core.sim.scene import Box  # noqa: E402
+from core.scene import Box  # noqa: E402
 
 log = logging.getLogger(__name__)
 

@@ -11,7 +11,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from core.sim.scene import Box
+from core.scene import Box
 from core.types import LocalEDF
 
 

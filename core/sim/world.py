@@ -23,7 +23,7 @@ import numpy as np
 from core.errors import StudioError
 from core.params import SimParams
 from core.robot.model import RobotModel
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 from core.sim.world_spec import PARKED_Z_M, add_box_slots, box_rgba, build_world_spec, wall_boxes
 from core.types import RobotState
 

@@ -15,7 +15,7 @@ import pinocchio as pin
 from core.params import SimParams
 from core.robot.model import RobotModel
 from core.robot.ur10_assets import ARM_LINKS, ur10_mesh
-from core.sim.scene import Box
+from core.scene import Box
 
 ROBOT_CONTYPE, BOX_CONAFFINITY = 1, 1
 """Robot geoms collide with boxes only (no self-collision, no floor contact); boxes never with boxes."""

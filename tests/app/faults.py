@@ -14,7 +14,7 @@ import numpy as np
 from app.runtime import Runtime, RuntimeConfig
 from core.params import HTMPCParams
 from core.robot.model import RobotModel
-from core.sim.scene import Scene
+from core.scene import Scene
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
 from core.types import Observation

@@ -5,7 +5,7 @@ import viser
 
 from app.runtime import Runtime, RuntimeConfig
 from app.ui.anchor_panel import APPROACH_FRONT, REACH_TOP, AnchorPanel, binding_lines
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 from tasks.schema import TaskSequence
 from tests.app.conftest import free_port
 

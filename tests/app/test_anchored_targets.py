@@ -8,7 +8,7 @@ import pytest
 from app.runtime import Runtime, RuntimeConfig
 from app.runtime.problems import ProblemKind
 from app.runtime.snapshot import RunState
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 from tasks.anchors import ObjectView, anchor_position
 from tasks.schema import EEPose
 from tasks.sequence_file import parse_sequence

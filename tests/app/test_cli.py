@@ -42,7 +42,7 @@ def test_bad_params_file_names_field_and_line(tmp_path):
 
 def test_targets_the_robot_cannot_take_are_refused_before_the_run(tmp_path):
     bad = tmp_path / "bad.yaml"
-    bad.write_text(f"scene: {ROOT / 'core/sim/scenes/default.yaml'}\nsubtasks:\n- kind: base\n"
+    bad.write_text(f"scene: {ROOT / 'core/scenes/default.yaml'}\nsubtasks:\n- kind: base\n"
                    "  target: {x: 2.2, y: 1.3}\n- kind: ee\n  target: {position: [2.0, 0.0, 5.0]}\n")
     proc = run_cli("run", "--headless", "--sequence", str(bad), timeout=180)
     assert proc.returncode == 2

@@ -19,7 +19,7 @@ from websockets.exceptions import InvalidStatus
 from app.foxglove_access import SUBPROTOCOL, serve_foxglove
 from app.foxglove_live import FoxgloveLive
 from app.runtime import Runtime, RuntimeConfig
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 from tests.app.conftest import free_port, start_studio, stop
 

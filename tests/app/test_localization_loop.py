@@ -14,7 +14,7 @@ from app.runtime import Runtime, RuntimeConfig
 from bench.localization import true_surface
 from core.localization.gates import Verdict
 from core.params import LocalizationParams, SensorParams, SimParams
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 from core.types import LocalizationStatus
 from tasks import BasePose, BaseSubtask, TaskSequence, Tolerance
 

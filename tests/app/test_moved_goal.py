@@ -10,7 +10,7 @@ import viser
 from app.runtime import Runtime, RuntimeConfig
 from app.runtime.snapshot import RunState
 from app.ui.progress_panel import ProgressPanel
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence, Tolerance
 from tests.app.conftest import free_port
 

@@ -6,7 +6,7 @@ import pytest
 
 from app.runtime import Runtime, RuntimeConfig
 from app.runtime.snapshot import RunState
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 from tasks.sequencer import Outcome
 

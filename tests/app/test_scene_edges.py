@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from app.runtime import Runtime, RuntimeConfig
-from core.sim.scene import Box, Scene, save_scene
+from core.scene import Box, Scene, save_scene
 from core.sim.world import SceneEditError
 from tasks.schema import BasePose, BaseSubtask, TaskSequence
 from tasks.sequence_file import EXAMPLES_DIR

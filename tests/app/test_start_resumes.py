@@ -8,7 +8,7 @@ import pytest
 from app.runtime import Runtime, RuntimeConfig
 from app.runtime.snapshot import RunState
 from app.ui.run_panel import CONTROL_HINT, ESTOP_HINT
-from core.sim.scene import Scene
+from core.scene import Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 from tasks.sequencer import Outcome
 

@@ -20,7 +20,7 @@ from websockets.sync.client import ClientConnection, connect
 from app.runtime import Runtime, RuntimeConfig
 from app.runtime.snapshot import RunState
 from app.ui.studio import Studio
-from core.sim.scene import Scene
+from core.scene import Scene
 from tests.app.conftest import free_port
 
 CAMERA = {"type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0], "position": [0.0, 0.0, 3.0], "fov": 1.0,

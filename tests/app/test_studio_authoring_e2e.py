@@ -5,7 +5,7 @@ import warnings
 import pytest
 
 from app.runtime import Runtime, RuntimeConfig
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 from tests.app.studio_page import FailedActions, choose, live_studio, open_studio, set_vector, wait_for
 

@@ -13,7 +13,7 @@ import pytest
 from app.runtime import Runtime, RuntimeConfig
 from app.runtime.snapshot import RunState
 from app.ui.studio import Studio
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 from tasks import TaskSequence
 from tests.app.conftest import ARTIFACTS, free_port
 

@@ -7,7 +7,7 @@ from app.recording import Recorder
 from app.recording.replay import ReplaySource
 from app.runtime import Runtime, RuntimeConfig
 from app.ui.studio import Studio
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 from tests.app.conftest import ARTIFACTS, free_port
 from tests.app.studio_page import choose, row_inputs, wait_for

@@ -12,7 +12,7 @@ import pytest
 
 from app.runtime import Runtime, RuntimeConfig
 from app.runtime.snapshot import RunState
-from core.sim.scene import load_scene
+from core.scene import load_scene
 from tasks import load_sequence
 from tasks.sequence_file import EXAMPLES_DIR
 from tests.app.conftest import ARTIFACTS, ROOT

@@ -11,7 +11,7 @@ import pytest
 from app.runtime import Runtime, RuntimeConfig
 from app.runtime.snapshot import RunState
 from app.ui import glyphs
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 from tests.app.conftest import ARTIFACTS, CHROMIUM, CHROMIUM_ARGS
 from tests.app.studio_page import choose, live_studio, open_studio, row_inputs, set_vector, wait_for

@@ -10,7 +10,7 @@ from app.runtime import Runtime, RuntimeConfig
 from app.runtime.problems import ProblemKind, summary_line
 from app.runtime.snapshot import RunState
 from core.params import MappingParams
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 
 DARK = Box("dark", (3.0, 0.0, 0.4), (0.6, 1.2, 0.8), dark=True)

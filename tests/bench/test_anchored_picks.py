@@ -6,7 +6,7 @@ import pytest
 
 from app.runtime import Runtime, RuntimeConfig
 from bench.anchored_picks import EXAMPLE, laps_of, world_frame
-from core.sim.scene import load_scene
+from core.scene import load_scene
 from tasks.schema import EESubtask
 from tasks.sequence_file import load_sequence
 

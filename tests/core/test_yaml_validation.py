@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from core.sim.scene import parse_scene
+from core.scene import parse_scene
 from core.yaml_validation import MAX_DEPTH, FileFormatError
 from tasks.sequence_file import parse_sequence
 

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
+from core.scene import Box, random_scene
 from core.sim.ground_truth import box_signed_distance
-from core.sim.scene import Box, random_scene
 from tasks.occupancy import OccupancyGrid
 from tasks.path_planner import NoPathError, plan_path
 

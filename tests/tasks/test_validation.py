@@ -4,7 +4,7 @@ rules turn into warnings when the operator says the scene will change, and the s
 import numpy as np
 import pytest
 
-from core.sim.scene import load_scene
+from core.scene import load_scene
 from tasks import BasePose, BaseSubtask, EEPose, EESubtask, TaskSequence, load_sequence
 from tasks.sequence_file import EXAMPLES_DIR, sequence_to_yaml
 from tasks.validation import (

@@ -12,7 +12,7 @@ from app.bridge.dependencies import Simulation
 from app.bridge.protocol import BoxIn, BoxMoveIn, BoxOut, ErrorOut, RandomiseIn, SceneOut
 from app.bridge.routes import AUTH_ERRORS, CONFLICT, NO_RUNTIME
 from app.bridge.views import scene_out
-from core.sim.scene import Box
+from core.scene import Box
 from core.types import vec3
 
 router = APIRouter(prefix="/api/scene", tags=["scene"])

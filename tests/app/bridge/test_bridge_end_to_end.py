@@ -18,7 +18,7 @@ import pytest
 
 from tests.app.bridge.conftest import ROOT, DriverProcess, auth, end_process, wait_until
 
-SCENE = ROOT / "core" / "sim" / "scenes" / "default.yaml"
+SCENE = ROOT / "core" / "scenes" / "default.yaml"
 SEQUENCE = f"""name: drive and reach
 scene: {SCENE}
 subtasks:

@@ -30,7 +30,7 @@ from app.recording.repair import repair
 from app.recording.replay import ReplaySource
 from app.recording.topics import SCHEMAS
 from app.runtime import Runtime, RuntimeConfig
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 
 ROOT = Path(__file__).parents[3]

@@ -9,7 +9,7 @@ from app.recording import Recorder
 from app.recording.replay import ReplaySource, wait_until_played
 from app.runtime import Runtime, RuntimeConfig
 from app.ui.studio import Studio
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 from tests.app.conftest import free_port
 

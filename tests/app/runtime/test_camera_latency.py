@@ -10,7 +10,7 @@ import pytest
 from app.runtime import Runtime, RuntimeConfig
 from core.params import MappingParams, SensorParams, SimParams
 from core.robot.model import READY_Q
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 
 LATENCY_S = 0.05
 YAW_RATE = 0.75

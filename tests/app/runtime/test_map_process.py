@@ -14,7 +14,7 @@ from app.runtime.map_process import MapProcess, MapProcessError
 from core.mapping import ObjectMapper
 from core.params import MappingParams
 from core.robot.model import RobotModel
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
 from tests.app.bridge.conftest import wait_until

@@ -10,7 +10,7 @@ from app.recording.report import write_report
 from app.runtime import Runtime, RuntimeConfig
 from app.runtime.problems import ProblemKind, ProblemLog, summary_line
 from app.runtime.snapshot import RunState
-from core.sim.scene import Scene
+from core.scene import Scene
 from core.types import Plan, PlanReason, PlanStatus
 from tasks import BasePose, BaseSubtask, TaskSequence
 

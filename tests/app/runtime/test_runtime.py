@@ -11,7 +11,7 @@ import pytest
 from app.recording import Recorder, read_recording
 from app.runtime import Runtime, RuntimeConfig
 from app.runtime.snapshot import RunState
-from core.sim.scene import Box, Scene, random_scene
+from core.scene import Box, Scene, random_scene
 from core.sim.world import SceneEditError
 from tasks import BasePose, BaseSubtask, TaskSequence
 from tasks.sequence_file import EXAMPLES_DIR, load_sequence

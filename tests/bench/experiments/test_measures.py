@@ -3,7 +3,7 @@
 import numpy as np
 
 from bench.experiments.measures import box_in_view, collision_bodies, in_view, phantoms
-from core.sim.scene import Box
+from core.scene import Box
 from core.sim.world import CollisionEvent
 from core.types import DepthFrame
 

@@ -6,9 +6,9 @@ import pytest
 
 from core.htmpc.box_barrier import BoxBarrier
 from core.robot.model import READY_Q
+from core.scene import Box
 from core.sim.collision_cover import _box_surface
 from core.sim.ground_truth import ground_truth_edf
-from core.sim.scene import Box
 
 
 def base_q(x, y, yaw):

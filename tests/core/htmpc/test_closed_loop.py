@@ -8,7 +8,7 @@ from core.htmpc import HTMPC
 from core.htmpc.so3 import log3
 from core.params import HTMPCParams
 from core.robot.model import READY_Q
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 from core.sim.world import SimWorld
 from core.types import BaseReference, EEReference, References
 from tests.core.htmpc.closed_loop import run

@@ -10,7 +10,7 @@ from bench.experiments.avoidability import Push, avoidable_by
 from core.htmpc import HTMPC
 from core.params import HTMPCParams
 from core.robot.model import READY_Q
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 from core.sim.world import SimWorld
 from core.types import BaseReference, EEReference, References
 from tests.core.htmpc.closed_loop import run

@@ -8,8 +8,8 @@ from core.htmpc import HTMPC
 from core.htmpc.safety import brake_along
 from core.params import HTMPCParams, SensorParams
 from core.robot.model import READY_Q
+from core.scene import Box, Scene
 from core.sim.ground_truth import ground_truth_edf
-from core.sim.scene import Box, Scene
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
 from core.types import BaseReference, LocalEDF, Plan, PlanReason, PlanStatus, References, RobotState

@@ -11,7 +11,7 @@ from core.mapping.frame_exposure import at_exposure
 from core.params import SensorParams, SimParams
 from core.robot.model import READY_Q
 from core.robot.state_history import StateHistory
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
 

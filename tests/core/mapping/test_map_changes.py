@@ -9,8 +9,8 @@ import pytest
 from core.mapping import ObjectMapper, VoxelMap
 from core.params import SensorParams
 from core.robot.model import READY_Q
+from core.scene import Box
 from core.sim.ground_truth import box_signed_distance
-from core.sim.scene import Box
 from tests.core.mapping.rendered_views import View
 
 NOISE = 0.005  # depth std = 0.005 · z² (2 cm at 2 m)

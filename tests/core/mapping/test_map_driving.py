@@ -9,8 +9,8 @@ import pytest
 
 from core.mapping import ObjectMapper
 from core.robot.model import READY_Q
+from core.scene import Box, aisle_scene
 from core.sim.ground_truth import ground_truth_edf, scene_signed_distance
-from core.sim.scene import Box, aisle_scene
 from tests.core.mapping.rendered_views import View
 
 NOISE = 0.005

@@ -8,8 +8,8 @@ import numpy as np
 from core.mapping.depth_points import unproject
 from core.mapping.flying_pixels import depth_span, without_flying_pixels
 from core.params import MappingParams, SensorParams
+from core.scene import Box
 from core.sim.ground_truth import box_signed_distance
-from core.sim.scene import Box
 from tests.core.mapping.rendered_views import View
 
 BOX = Box("a", (1.8, 0.0, 0.3), yaw=0.3)

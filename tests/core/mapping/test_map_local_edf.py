@@ -5,8 +5,8 @@ import pytest
 from scipy import ndimage
 
 from core.mapping.local_edf import EDFGrid, depth_inside, local_edf, mark_boxes, mark_points, signed_distance
+from core.scene import Box
 from core.sim.ground_truth import box_signed_distance
-from core.sim.scene import Box
 
 WINDOW = (4.0, 4.0, 1.4)
 

@@ -12,8 +12,8 @@ from core.mapping.scene_points import ScenePoints
 from core.mapping.segmentation import segment, voxelise
 from core.mapping.self_filter import SelfFilter
 from core.params import SensorParams
+from core.scene import Box
 from core.sim.ground_truth import box_signed_distance, ground_truth_edf
-from core.sim.scene import Box
 from core.types import ObjectStatus, Observation, RobotState
 from tests.core.mapping.rendered_views import View, yaw_error, yaw_of
 

@@ -12,7 +12,7 @@ from core.mapping.box_fit import BoxFit
 from core.mapping.completion import Completion
 from core.params import SensorParams
 from core.robot.model import READY_Q
-from core.sim.scene import Box
+from core.scene import Box
 from tests.core.mapping.rendered_views import View
 
 

@@ -9,8 +9,8 @@ from core.mapping.box_fit import fit_upright_box
 from core.mapping.local_edf import EDFGrid, box_field, column_field, mark_columns, signed_distance, window_axes
 from core.params import MappingParams, SensorParams
 from core.robot.model import READY_Q, RobotModel
+from core.scene import Box
 from core.sim.ground_truth import box_signed_distance, scene_signed_distance
-from core.sim.scene import Box
 from core.types import LocalEDF
 from tests.core.mapping.rendered_views import View
 

@@ -8,7 +8,7 @@ import numpy as np
 from core.mapping.unknown_floor import UnknownFloor, unknown_columns
 from core.params import SensorParams
 from core.robot.model import RobotModel
-from core.sim.scene import Box
+from core.scene import Box
 from core.types import LocalEDF, UnknownSpace
 from tests.core.mapping.rendered_views import View
 

@@ -8,8 +8,8 @@ import pytest
 
 from core.params import CameraParams, SensorParams, SimParams
 from core.robot.model import READY_Q
+from core.scene import Box, Scene
 from core.sim.depth_camera import DepthCamera
-from core.sim.scene import Box, Scene
 from core.sim.world import SimWorld
 
 

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
+from core.scene import Box
 from core.sim.ground_truth import box_signed_distance, ground_truth_edf
-from core.sim.scene import Box
 
 
 def test_box_signed_distance_hand_computed():

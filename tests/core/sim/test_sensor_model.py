@@ -10,8 +10,8 @@ import pytest
 from core.mapping.depth_points import unproject
 from core.params import CameraParams, SensorParams, SimParams
 from core.robot.model import READY_Q
+from core.scene import Box, Scene
 from core.sim.depth_camera import DepthCamera
-from core.sim.scene import Box, Scene
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
 

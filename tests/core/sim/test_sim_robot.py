@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 from core.sim.sim_robot import SimRobot
 from core.types import Observation, RobotBackend
 

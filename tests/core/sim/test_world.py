@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from core.robot.model import READY_Q
-from core.sim.scene import Box, Scene
+from core.scene import Box, Scene
 from core.sim.world import SceneEditError, SimWorld
 
 

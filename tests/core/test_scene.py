@@ -1,9 +1,12 @@
 import math
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from core.sim.scene import (
+from core.scene import (
     PAPER_BOX_M,
     Box,
     _passable,
@@ -60,9 +63,7 @@ def test_yaml_round_trip(tmp_path):
 
 
 def test_shipped_scenes_load():
-    from pathlib import Path
-
-    paths = sorted((Path(__file__).parents[3] / "core/sim/scenes").glob("*.yaml"))
+    paths = sorted((Path(__file__).parents[2] / "core/scenes").glob("*.yaml"))
     assert paths, "no scene files found"
     for path in paths:
         assert load_scene(path).boxes, path.name
@@ -86,8 +87,19 @@ def test_bad_scene_files_name_field_and_line(text, field, line):
 
 
 def test_box_pose_matrix():
-    from core.sim.scene import Box
+    from core.scene import Box
 
     T = Box("a", (1.0, 2.0, 0.3), yaw=math.pi / 2).pose()
     np.testing.assert_allclose(T[:3, 0], [0, 1, 0], atol=1e-12)
     np.testing.assert_allclose(T[:3, 3], [1.0, 2.0, 0.3])
+
+
+def test_the_scene_types_import_neither_mujoco_nor_the_gl_probe():
+    """`Box`, `Scene` and scene files are plain data: importing them must not pick a GL backend or load MuJoCo
+    (core/sim does both on its first import), so the UI, the bridge's views and snapshots stay light."""
+    code = ("import sys, core.scene, app.runtime.snapshot, app.bridge.views; "
+            "loaded = [m for m in ('mujoco', 'core.sim', 'core.sim.gl_backend') if m in sys.modules]; "
+            "print(loaded); sys.exit(1 if loaded else 0)")
+    done = subprocess.run([sys.executable, "-c", code], cwd=Path(__file__).parents[2], capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 0, f"importing the scene types loaded {done.stdout.strip()} {done.stderr[-500:]}"
