@@ -245,7 +245,7 @@ class EEReference:
 
     `frame` 'world' (default) or 'base': a pose in the base frame (x ahead, z up from the floor) that the
     hand holds relative to the base wherever the base goes; the controller computes the error in the base
-    frame at every node (`core.htmpc.tasks.EEBaseFrameTask`)."""
+    frame at every node (`core.htmpc.task_costs.EEBaseFrameTaskCost`)."""
 
     position: np.ndarray
     rotation: np.ndarray | None = None

@@ -48,7 +48,7 @@ from core.htmpc.level_problem import (
 )
 from core.htmpc.ocp_qp import NQ, QPLayout, StructuredQP
 from core.htmpc.safety import brake_along, braking_plan, plan_is_safe
-from core.htmpc.tasks import BaseTask, EEBaseFrameTask, EETask, Linearisation, Task
+from core.htmpc.task_costs import BaseTaskCost, EEBaseFrameTaskCost, EETaskCost, Linearisation, TaskCost
 from core.params import HTMPCParams
 from core.robot.model import RobotModel
 from core.types import Plan, PlanReason, PlanStatus, References, RobotState
@@ -130,8 +130,8 @@ class HTMPC:
         self.robot = robot
         self.params = params or HTMPCParams()
         p = self.params
-        self.tasks = {"base": BaseTask(p.Q_base), "ee": EETask(p.Q_ee)}
-        self.ee_base_task = EEBaseFrameTask(p.Q_ee)
+        self.tasks = {"base": BaseTaskCost(p.Q_base), "ee": EETaskCost(p.Q_ee)}
+        self.ee_base_task = EEBaseFrameTaskCost(p.Q_ee)
         """The EE task when the reference is in the base frame (`EEReference.frame == 'base'`)."""
         self.kinematics = HorizonKinematicsEvaluator(robot, p.N + 1)
         self._step_kinematics = HorizonKinematicsEvaluator(robot, 2)
@@ -199,7 +199,7 @@ class HTMPC:
             out[name] = task.linearise(q_bar, kin, task.reference(refs))
         return out
 
-    def _task(self, name: str, refs: References) -> Task:
+    def _task(self, name: str, refs: References) -> TaskCost:
         """The task object for `name` under these references (the base-frame EE task for a base-frame target)."""
         base_frame = name == "ee" and refs.ee is not None and refs.ee.frame == "base"
         return self.ee_base_task if base_frame else self.tasks[name]

@@ -16,7 +16,7 @@ import numpy as np
 
 from core.htmpc.collision_constraint import CollisionRows, StepRows
 from core.htmpc.ocp_qp import NQ, LevelArrays, QPLayout, StructuredQP
-from core.htmpc.tasks import Linearisation
+from core.htmpc.task_costs import Linearisation
 from core.params import HTMPCParams
 
 

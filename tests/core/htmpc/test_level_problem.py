@@ -6,7 +6,7 @@ import pytest
 
 from core.htmpc.level_problem import LexBound, add_lex_rows, base_arrays, lex_limits, lex_tolerances, task_cost
 from core.htmpc.ocp_qp import QPLayout, StructuredQP
-from core.htmpc.tasks import Linearisation
+from core.htmpc.task_costs import Linearisation
 from core.params import HTMPCParams
 
 

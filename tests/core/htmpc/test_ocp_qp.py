@@ -6,7 +6,7 @@ import pytest
 
 from core.htmpc.level_problem import base_arrays, task_cost, variable_bounds
 from core.htmpc.ocp_qp import QPLayout, StructuredQP
-from core.htmpc.tasks import Linearisation
+from core.htmpc.task_costs import Linearisation
 from core.params import HTMPCParams
 
 

@@ -1,15 +1,15 @@
-"""Task errors of eq. (5) and their Gauss-Newton Jacobians against hand values and finite differences."""
+"""TaskCost errors of eq. (5) and their Gauss-Newton Jacobians against hand values and finite differences."""
 
 import numpy as np
 import pinocchio as pin
 
 from core.htmpc.horizon_kinematics import HorizonKinematicsEvaluator
-from core.htmpc.tasks import BaseTask, EEBaseFrameTask, EETask
+from core.htmpc.task_costs import BaseTaskCost, EEBaseFrameTaskCost, EETaskCost
 from core.types import BaseReference, EEReference, References
 
 
 def test_base_error_hand_computed():
-    task = BaseTask((1.0, 1.0, 0.5))
+    task = BaseTaskCost((1.0, 1.0, 0.5))
     q = np.zeros((2, 9))
     q[1, :3] = [1.0, 2.0, 3.0]
     ref = BaseReference(xy=np.array([[2.0, 0.0]]), yaw=np.array([-3.0]))
@@ -27,7 +27,7 @@ def test_ee_error_uses_exact_log(robot):
     kin = HorizonKinematicsEvaluator(robot, 4)(q)
     Rd = pin.utils.rpyToMatrix(0.3, -1.0, 2.5)
     pd = np.array([1.0, -0.5, 0.8])
-    e = EETask((1,) * 6).compute_error(q, kin, EEReference(pd[None], Rd[None]))
+    e = EETaskCost((1,) * 6).compute_error(q, kin, EEReference(pd[None], Rd[None]))
     for k in range(4):
         T = robot.ee_pose(q[k])
         np.testing.assert_allclose(e[k, :3], pd - T[:3, 3], atol=1e-12)
@@ -37,7 +37,7 @@ def test_ee_error_uses_exact_log(robot):
 def test_ee_jacobian_matches_finite_differences(robot):
     rng = np.random.default_rng(3)
     q0 = robot.random_q(rng)
-    task = EETask((1,) * 6)
+    task = EETaskCost((1,) * 6)
     ev = HorizonKinematicsEvaluator(robot, 1)
     ref = EEReference(np.array([[0.9, 0.2, 1.0]]), pin.utils.rpyToMatrix(0.1, 0.4, -0.7)[None])
     J = task.compute_jacobian(q0[None], ev(q0[None]), ref)[0]
@@ -56,7 +56,7 @@ def test_base_frame_ee_error_is_the_pose_relative_to_the_base(robot):
     q = np.array([robot.random_q(rng) for _ in range(3)])
     kin = HorizonKinematicsEvaluator(robot, 3)(q)
     pd, Rd = np.array([0.3, -0.6, 0.9]), pin.utils.rpyToMatrix(0.0, 0.2, -1.5)
-    e = EEBaseFrameTask((1,) * 6).compute_error(q, kin, EEReference(pd[None], Rd[None], frame="base"))
+    e = EEBaseFrameTaskCost((1,) * 6).compute_error(q, kin, EEReference(pd[None], Rd[None], frame="base"))
     for k in range(3):
         T_base = robot.frame_pose(q[k], "mobile_base")
         T_rel = np.linalg.inv(T_base) @ robot.ee_pose(q[k])
@@ -64,7 +64,7 @@ def test_base_frame_ee_error_is_the_pose_relative_to_the_base(robot):
         np.testing.assert_allclose(e[k, 3:], pin.log3(T_rel[:3, :3].T @ Rd), atol=1e-9)
     moved = q.copy()
     moved[:, :3] += [1.5, -2.0, 0.7]  # the base drives and turns: the base-frame error does not change
-    e2 = EEBaseFrameTask((1,) * 6).compute_error(moved, HorizonKinematicsEvaluator(robot, 3)(moved),
+    e2 = EEBaseFrameTaskCost((1,) * 6).compute_error(moved, HorizonKinematicsEvaluator(robot, 3)(moved),
                                                  EEReference(pd[None], Rd[None], frame="base"))
     np.testing.assert_allclose(e2, e, atol=1e-9)
 
@@ -72,7 +72,7 @@ def test_base_frame_ee_error_is_the_pose_relative_to_the_base(robot):
 def test_base_frame_ee_jacobian_matches_finite_differences(robot):
     rng = np.random.default_rng(5)
     q0 = robot.random_q(rng)
-    task = EEBaseFrameTask((1,) * 6)
+    task = EEBaseFrameTaskCost((1,) * 6)
     ev = HorizonKinematicsEvaluator(robot, 1)
     for rot in (None, pin.utils.rpyToMatrix(0.1, 0.4, -0.7)[None]):
         ref = EEReference(np.array([[0.5, 0.2, 1.0]]), rot, frame="base")
@@ -95,7 +95,8 @@ def test_every_task_takes_the_same_arguments_and_picks_its_own_reference(robot):
     base = BaseReference(xy=np.array([[1.0, -1.0]]), yaw=np.array([0.3]))
     world = EEReference(np.array([[0.8, 0.1, 1.0]]), np.eye(3)[None])
     in_base = EEReference(np.array([[0.5, 0.0, 0.9]]), np.eye(3)[None], frame="base")
-    cases = ((BaseTask((1.0,) * 3), base), (EETask((1.0,) * 6), world), (EEBaseFrameTask((1.0,) * 6), in_base))
+    cases = ((BaseTaskCost((1.0,) * 3), base), (EETaskCost((1.0,) * 6), world),
+             (EEBaseFrameTaskCost((1.0,) * 6), in_base))
     for task, ref in cases:
         refs = References(order=("base", "ee"), base=base, ee=ref if task.name == "ee" else None)
         assert task.reference(refs) is ref
@@ -105,4 +106,4 @@ def test_every_task_takes_the_same_arguments_and_picks_its_own_reference(robot):
         np.testing.assert_array_equal(lin.e0, e)
         np.testing.assert_array_equal(lin.J, J)
         assert J.shape == (3, e.shape[1], 9) and lin.weights.shape == (e.shape[1],)
-    assert BaseTask((1.0,) * 3).compute_error(q, None, base).shape == (3, 3)  # the base task needs no FK
+    assert BaseTaskCost((1.0,) * 3).compute_error(q, None, base).shape == (3, 3)  # the base task needs no FK

@@ -1,6 +1,8 @@
-"""Pose-tracking tasks of the HTMPC (eq. 5), mink/pink style: one `Task` interface, `compute_error(q, kin, ref)`
-and `compute_jacobian(q, kin, ref)` with the same arguments for every task, so the controller treats its levels
-alike (`Task.reference` picks a task's reference out of `References`).
+"""The HTMPC's task costs J_l (eq. 5): pose-tracking errors of the base or the hand, mink/pink style. One
+`TaskCost` interface, `compute_error(q, kin, ref)` and `compute_jacobian(q, kin, ref)` with the same arguments
+for every cost, so the controller treats its levels alike (`TaskCost.reference` picks a cost's reference out of
+`References`). "Task" alone names what an operator authors (`tasks/`, a task sequence of subtasks); a task
+cost is what one subtask's reference becomes inside the controller.
 
 Errors are e = reference − actual (position) and Log(R^T R_d) (orientation), one row per node; the
 Jacobian is de/dq, so the Gauss-Newton model is e(q) ≈ e(q̄) + J (q − q̄).
@@ -32,7 +34,7 @@ class Linearisation:
     weights: np.ndarray
 
 
-class Task:
+class TaskCost:
     """A task of the hierarchy: its error e(q) over the horizon nodes and de/dq, from the configurations q (K, 9)
     and their kinematics `kin` (None is enough for a task with `needs_kinematics` False)."""
 
@@ -63,7 +65,7 @@ class Task:
         return Linearisation(self.name, e, self.compute_jacobian(q, kin, ref, e), self.weights[: e.shape[1]])
 
 
-class BaseTask(Task):
+class BaseTaskCost(TaskCost):
     """Base pose task: e = [x_d − x, y_d − y, wrap(yaw_d − yaw)] (yaw dropped when the reference has none)."""
 
     name = "base"
@@ -89,7 +91,7 @@ class BaseTask(Task):
         return J
 
 
-class EETask(Task):
+class EETaskCost(TaskCost):
     """End-effector pose task: e = [p_d − p ; Log(R^T R_d)] (orientation dropped without a reference rotation).
 
     d Log(R^T R_d)/dq = −J_l^{-1}(e_r) R^T J_ω, from R(q + dq) ≈ exp([J_ω dq]×) R.
@@ -127,7 +129,7 @@ def _yaw_rotations(yaw: np.ndarray) -> np.ndarray:
     return R
 
 
-class EEBaseFrameTask(EETask):
+class EEBaseFrameTaskCost(EETaskCost):
     """End-effector pose task in the base frame, for a hand held relative to the base while it drives:
     e = [p_d^b − R_ψ^T (p − t) ; Log((R_ψ^T R)^T R_d^b)], with t = (x, y, 0) and R_ψ the base yaw, at every node.
 
