@@ -58,8 +58,8 @@ def build_snapshot(loop: ClosedLoop, seq: int, messages: tuple[str, ...], sequen
         clouds=clouds(frames), progress=view.progress, active_index=view.index, sequence_version=sequence_version,
         min_distance_m=min_distance, collisions=len(world.collisions) if world else 0, timings_ms=timings,
         map_kind=config.map_kind, constraint=config.constraint, speed=config.speed, messages=messages, fault=fault,
-        command=command, depth_frames=frames, problems=loop.problems.counts(), targets=target_marks(sequence),
-        anchors=anchors)
+        command=command, depth_frames=frames, problems=loop.problems.counts(),
+        targets=target_marks(sequence, view.progress), anchors=anchors)
 
 
 def _map_view(loop: ClosedLoop) -> tuple[ObjectMapSnapshot | None, np.ndarray | None]:

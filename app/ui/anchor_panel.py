@@ -67,7 +67,7 @@ class AnchorPanel:
         gui = server.gui
         none: tuple[str, ...] = (NONE,)
         self.object = gui.add_dropdown("Object", options=none, initial_value=NONE)
-        self.name = gui.add_text("Name", initial_value="box_1")
+        self.name = gui.add_text("Object name", initial_value="box_1")
         self.name_button = gui.add_button("Name…")
         self.reach_top = gui.add_button("Reach its top")
         self.approach_front = gui.add_button("Approach its front")

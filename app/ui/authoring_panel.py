@@ -172,7 +172,8 @@ class AuthoringPanel:
 
     def _draw_markers(self, seq: TaskSequence) -> None:
         """One frame per goal and waypoint, a label at each subtask's goal; base-frame EE targets are drawn
-        under the robot's base frame, so they move with it."""
+        under the robot's base frame, so they move with it. Anchored poses are relative to their object: the
+        Names tab draws them where they sit on it (`AnchorPanel`), so none is drawn here at its raw offset."""
         for handle in self._markers:
             handle.remove()
         self._markers = []
@@ -181,6 +182,8 @@ class AuthoringPanel:
             poses = list(sub.path()) + ([sub.ee] if isinstance(sub, BaseSubtask) and sub.ee is not None else [])
             for k, pose in enumerate(poses):
                 last = k == len(sub.path()) - 1
+                if pose.anchor is not None:
+                    continue
                 if isinstance(pose, EEPose):
                     pos, wxyz = _ee_marker(pose)
                     color = (245, 140, 20)

@@ -157,6 +157,35 @@ def test_rename_and_start_a_new_sequence(session):
              "the undo")
 
 
+def _canvas_rect(page) -> dict:
+    return page.evaluate("() => { const r = document.querySelector('canvas').getBoundingClientRect();"
+                         " return {x: r.x, y: r.y, width: r.width, height: r.height}; }")
+
+
+@pytest.mark.slow
+def test_the_names_tab_names_a_clicked_object_and_anchors_a_target_on_it(session):
+    """Click a mapped object in the 3D view, type a name, press *Name…* and *Reach its top*: the name is bound
+    to that object and an anchored subtask on its top joins the sequence, listed with its binding."""
+    runtime, studio, page = session
+    page.get_by_role("tab", name="Names").click()
+    client = next(iter(studio.server.get_clients().values()))
+    top = np.asarray(runtime.world.box("mover").position) + [0.0, 0.0, 0.31]  # on its pick shell's top
+    page.mouse.click(*project(client.camera, top, _canvas_rect(page)))
+    wait_for(lambda: studio.anchor_panel.object.value == "mover", 30, "the click to select the object")
+    field = row_inputs(page, "Object name").first
+    field.fill("box_7")
+    field.press("Enter")
+    wait_for(lambda: studio.anchor_panel.name.value == "box_7", 30, "the typed name")
+    page.get_by_role("button", name="Name…").click()
+    wait_for(lambda: runtime.closed_loop.names.bound().get("box_7") == "mover", 30, "the name to bind")
+    page.get_by_role("button", name="Reach its top").click()
+    wait_for(lambda: any(s.name == "reach top of box_7" for s in runtime.sequence.subtasks), 30,
+             "the anchored subtask")
+    assert "box_7" in runtime.sequence.objects
+    page.get_by_text(re.compile(r"reach top of box_7")).first.wait_for()
+    page.screenshot(path=str(ARTIFACTS / "studio_names_tab.png"))
+
+
 @pytest.mark.slow
 def test_progress_bar_and_time_left_while_running(session):
     runtime, studio, page = session

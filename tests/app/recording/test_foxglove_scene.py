@@ -15,6 +15,8 @@ from core.robot.model import READY_Q, RobotModel
 from core.types import RobotState
 from tasks import BasePose, BaseSubtask, TaskSequence
 from tasks.schema import EEPose, EESubtask
+from tasks.sequence_file import parse_sequence
+from tasks.sequencer import SubtaskProgress
 
 
 def _decode(name: str, data: bytes):
@@ -48,6 +50,16 @@ def test_targets_are_drawn_in_their_frame() -> None:
     drive = next(e for e in update.entities if e.texts and e.texts[0].text == "drive")
     assert drive.arrows[0].pose.orientation.z == np.sin(np.pi / 4)
     assert update.deletions[0].type == 1  # all of the topic's entities first: each message is the whole picture
+
+
+def test_an_anchored_target_is_drawn_where_it_sits_on_its_object_never_at_its_raw_offset() -> None:
+    sequence = parse_sequence("objects: {box_3: {}}\nsubtasks:\n- kind: ee\n  name: reach\n"
+                              "  target: {anchor: {object: box_3, offset: [0.0, 0.0, 0.4]}}\n"
+                              "- kind: base\n  target: {x: 1.0, y: 2.0}\n")
+    assert [m.index for m in target_marks(sequence)] == [1]  # not placed yet: not drawn
+    placed = SubtaskProgress(0, "reach", "ee", anchored_goal=(2.5, 0.0, 1.0))
+    marks = target_marks(sequence, [placed])
+    assert [(m.index, m.position) for m in marks] == [(0, (2.5, 0.0, 1.0)), (1, (1.0, 2.0, 0.0))]
 
 
 def test_link_meshes_are_y_up_gltf_so_foxglove_draws_them_in_the_link_frame() -> None:
