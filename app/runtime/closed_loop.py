@@ -61,7 +61,7 @@ from core.mapping.world_map import WorldMap
 from core.params import ConstraintKind, SensorParams
 from core.robot.model import RobotModel
 from core.robot.state_history import StateHistory
-from core.sim.sim_robot import SimRobot
+from core.sim.simulated_backend import is_simulated
 from core.sim.world import SimWorld
 from core.types import (
     NQ,
@@ -184,7 +184,7 @@ class ClosedLoop:
     def _match_sensing(self) -> None:
         """The simulated robot perceives through the sensor model (`SimParams.sensor`), except with the
         ground-truth map: the truth is exact, and a drifting pose estimate would misplace the robot in it."""
-        if isinstance(self.backend, SimRobot):
+        if is_simulated(self.backend):
             exact = self.config.map_kind == "ground_truth"
             self.backend.set_sensor(SensorParams.ideal() if exact else self.config.sim.sensor)
 
@@ -206,9 +206,15 @@ class ClosedLoop:
 
     @property
     def moving(self) -> bool:
-        """Whether the active plan is commanded now (paused, only the simulation freezes: a real robot
-        would keep moving, so it gets zero)."""
-        return self.run_state in MOVING_STATES or (self.run_state == RunState.PAUSED and self.world is not None)
+        """Whether the active plan is commanded now (paused, only a backend stepped in lockstep freezes: a
+        real robot would keep moving, so it gets zero)."""
+        return self.run_state in MOVING_STATES or (self.run_state == RunState.PAUSED and self._frozen_when_paused)
+
+    @property
+    def _frozen_when_paused(self) -> bool:
+        """Whether a pause freezes the robot with its plan: its time advances only when stepped
+        (`BackendAbilities.steps_in_lockstep`), and paused it is not."""
+        return self.backend.abilities.steps_in_lockstep
 
     # --- run control ---------------------------------------------------------------------------------
 
@@ -251,7 +257,7 @@ class ClosedLoop:
         if self._halted_t is not None:  # stopped or e-stopped: the subtask clock stood still since then
             self.sequencer.pause(self._halted_t)
         self.sequencer.resume()  # from the next state's time: the robot's clock may have run on unseen
-        if self.world is None or interrupted != RunState.PAUSED:  # a robot held still: its old plan is void
+        if not self._frozen_when_paused or interrupted != RunState.PAUSED:  # a robot held still: its old plan is void
             self.plan = None
             self._pending_plans.clear()
         self._last_control_t = self.state.t  # the interruption is no lateness of the control loop
@@ -513,12 +519,10 @@ class ClosedLoop:
         return self._surface
 
     def camera_latency_s(self) -> float:
-        """The calibrated exposure-to-stamp latency (`MappingParams.camera_latency_s`); unset, the simulated
-        camera's own offset."""
+        """The calibrated exposure-to-stamp latency (`MappingParams.camera_latency_s`); unset, the one the
+        backend declares (`BackendAbilities.camera_latency_s`: the simulated camera's own offset)."""
         latency = self.config.mapping.camera_latency_s
-        if latency is not None:
-            return latency
-        return self.backend.sensor.camera_time_offset_s if isinstance(self.backend, SimRobot) else 0.0
+        return latency if latency is not None else self.backend.abilities.camera_latency_s
 
     def advance_clock(self, dt_s: float) -> RobotState:
         """No observation this period (the backend raised): keep the last state, its time moved on by dt_s,
