@@ -55,7 +55,7 @@ from app.runtime.unknown_ahead import planner_points, unknown_ahead
 from app.target_check import recheck_anchored
 from core.htmpc.safety import brake_along, braking_plan
 from core.localization import Localizer, se2
-from core.mapping.frame_exposure import at_exposure
+from core.mapping.frame_exposure import camera_latency, frames_at_exposure
 from core.mapping.reference_surface import occupied_surface, trusted_surface
 from core.mapping.world_map import WorldMap
 from core.params import ConstraintKind, SensorParams
@@ -521,8 +521,7 @@ class ClosedLoop:
     def camera_latency_s(self) -> float:
         """The calibrated exposure-to-stamp latency (`MappingParams.camera_latency_s`); unset, the one the
         backend declares (`BackendAbilities.camera_latency_s`: the simulated camera's own offset)."""
-        latency = self.config.mapping.camera_latency_s
-        return latency if latency is not None else self.backend.abilities.camera_latency_s
+        return camera_latency(self.config.mapping.camera_latency_s, self.backend.abilities.camera_latency_s)
 
     def advance_clock(self, dt_s: float) -> RobotState:
         """No observation this period (the backend raised): keep the last state, its time moved on by dt_s,
@@ -569,16 +568,12 @@ class ClosedLoop:
         self.localize(frames)
 
     def _at_exposure(self, frames: list[DepthFrame]) -> tuple[tuple[DepthFrame, ...], RobotState]:
-        """The frames moved back to their exposure (camera latency compensated) and the robot's state at
-        the newest exposure: the map places the robot's body there, not where it is now (call under `lock`)."""
-        latency = self.camera_latency_s()
-        moved = []
-        for frame in frames:
-            stamp, exposure = self.history.at(frame.t), self.history.at(frame.t - latency)
-            moved.append(frame if stamp is None or exposure is None
-                         else at_exposure(frame, latency, stamp, exposure, self.robot))
+        """The frames moved back to their exposure (camera latency compensated, `frames_at_exposure`) and the
+        robot's state at the newest exposure: the map places the robot's body there, not where it is now (call
+        under `lock`)."""
+        moved = frames_at_exposure(frames, self.history, self.camera_latency_s(), self.robot)
         newest = self.history.at(max(f.t for f in moved))
-        return tuple(moved), newest if newest is not None else self.state
+        return moved, newest if newest is not None else self.state
 
     def control(self, state: RobotState) -> None:
         """Sequencer → references → HTMPC; the plan becomes active after the modelled actuation delay."""
