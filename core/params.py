@@ -250,8 +250,9 @@ class MappingParams:
     """Points within the robot's collision spheres grown by this margin are the robot itself."""
     camera_latency_s: float | None = None
     """Calibrated time from a frame's exposure to its stamp: the map places each frame at the camera pose
-    of its exposure (`core/mapping/frame_exposure.py`). None: the simulated camera's own offset
-    (`SensorParams.camera_time_offset_s`, an exact calibration), 0 with a real robot (set it there)."""
+    of its exposure (`core/mapping/frame_exposure.py`). None: the latency the robot backend declares
+    (`BackendAbilities.camera_latency_s`): the simulated camera's own offset (`SensorParams.camera_time_offset_s`,
+    an exact calibration), 0 with a real robot (set it there)."""
 
     # --- segmentation, association, registration ---------------------------------------------------
     min_segment_voxels: int = 8

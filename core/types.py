@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import StrEnum
-from typing import Protocol
+from typing import Protocol, TypeGuard
 
 import numpy as np
 
@@ -332,8 +332,31 @@ class Plan:
         return self.v[k] + self.u[k] * (tau - k * self.dt)
 
 
+@dataclass(frozen=True)
+class BackendAbilities:
+    """What a robot backend can do beyond `observe` and `command`, declared by the backend itself
+    (`RobotBackend.abilities`): the runtime asks, it never guesses from the backend's class (docs/design.md,
+    "Writing a new backend"). The defaults are a real robot's: its own clock, no ground truth."""
+
+    steps_in_lockstep: bool = False
+    """Time advances only when the runtime calls `step(dt)` (`SteppableBackend`): lockstep runs, live physics
+    paced by the run's speed, a pause that freezes the robot with its plan. False: the robot runs in real
+    time, and a pause holds it still with zero commands."""
+    simulated: bool = False
+    """A simulation whose world the runtime may read and edit: scene edits, ground-truth distances and
+    collisions, the ground-truth map (`core.sim.simulated_backend.SimulatedBackend`)."""
+    camera_latency_s: float = 0.0
+    """Time from a frame's exposure to its stamp (s), as far as the backend knows it (the simulated camera's
+    exact offset); the map compensates it unless `MappingParams.camera_latency_s` is set (calibrated)."""
+
+
 class RobotBackend(Protocol):
     """A robot the runtime drives: the MuJoCo simulation or a real robot behind the bridge."""
+
+    @property
+    def abilities(self) -> BackendAbilities:
+        """What this backend can do beyond observe and command (`BackendAbilities`)."""
+        ...
 
     def observe(self) -> Observation:
         """Latest joint state, odometry and the depth frames captured since the previous call."""
@@ -342,6 +365,29 @@ class RobotBackend(Protocol):
     def command(self, qdot: np.ndarray, t: float) -> None:
         """Joint velocity command qdot[9] (base x, y, yaw in the world frame; arm joints), stamped t."""
         ...
+
+
+class SteppableBackend(RobotBackend, Protocol):
+    """A backend whose time the runtime advances (`BackendAbilities.steps_in_lockstep`). Live, one thread
+    steps it, and owns what it renders with: `prepare_cameras()` before the first step, `close()` when the
+    thread ends (either may do nothing)."""
+
+    def step(self, dt: float) -> None:
+        """Advance the robot's time by dt (s)."""
+        ...
+
+    def prepare_cameras(self) -> None:
+        """Make what the cameras render with, from the thread that will step (live, before the first step)."""
+        ...
+
+    def close(self) -> None:
+        """Free it, from that thread, when it ends."""
+        ...
+
+
+def steps_in_lockstep(backend: RobotBackend) -> TypeGuard[SteppableBackend]:
+    """Whether the runtime advances `backend`'s time (as it declares): then it has `step(dt)`."""
+    return backend.abilities.steps_in_lockstep
 
 
 class LocalizationStatus(StrEnum):

@@ -2,7 +2,10 @@
 
 The runtime drives it exactly as it drives `SimRobot`: `observe()` returns the driver's latest
 accepted state, the depth frames that arrived since the previous call and the odometry (the base
-part of the state when the driver sends none); `command(qdot, t)` sends a velocity command.
+part of the state when the driver sends none); `command(qdot, t)` sends a velocity command. Its
+`abilities` are a real robot's: it runs on its own clock (no lockstep), there is no simulated world (no
+scene edits, no ground truth), and its cameras' latency is for the operator to calibrate
+(`MappingParams.camera_latency_s`).
 
 A command goes out as the runtime computed it only while everything is sound; otherwise zero velocity
 goes out, with the reason: the command itself is not 9 finite numbers (`invalid_command`), the state is
@@ -22,13 +25,16 @@ import numpy as np
 
 from app.bridge.protocol import STATE_LIMIT, CommandReason
 from app.bridge.robot_link import RobotLink, SentCommand
-from core.types import NQ, Observation, Odometry, RobotState
+from core.types import NQ, BackendAbilities, Observation, Odometry, RobotState
 
 log = logging.getLogger(__name__)
 
 
 class BridgeRobot:
     """A robot behind the bridge: observations from its driver, commands to it."""
+
+    abilities = BackendAbilities(steps_in_lockstep=False, simulated=False, camera_latency_s=0.0)
+    """A real robot: real time, no simulated world, camera latency unknown here (calibrate it)."""
 
     def __init__(self, link: RobotLink) -> None:
         self.link = link

@@ -56,13 +56,13 @@ from app.target_check import recheck_anchored
 from core.errors import StudioError
 from core.htmpc.safety import brake_along, braking_plan
 from core.localization import Localizer, se2
-from core.mapping.frame_exposure import at_exposure
+from core.mapping.frame_exposure import camera_latency, frames_at_exposure
 from core.mapping.reference_surface import occupied_surface, trusted_surface
 from core.mapping.world_map import WorldMap
 from core.params import ConstraintKind, SensorParams
 from core.robot.model import RobotModel
 from core.robot.state_history import StateHistory
-from core.sim.sim_robot import SimRobot
+from core.sim.simulated_backend import is_simulated
 from core.sim.world import SimWorld
 from core.types import (
     NQ,
@@ -186,7 +186,7 @@ class ClosedLoop:
     def _match_sensing(self) -> None:
         """The simulated robot perceives through the sensor model (`SimParams.sensor`), except with the
         ground-truth map: the truth is exact, and a drifting pose estimate would misplace the robot in it."""
-        if isinstance(self.backend, SimRobot):
+        if is_simulated(self.backend):
             exact = self.config.map_kind == "ground_truth"
             self.backend.set_sensor(SensorParams.ideal() if exact else self.config.sim.sensor)
 
@@ -208,9 +208,15 @@ class ClosedLoop:
 
     @property
     def moving(self) -> bool:
-        """Whether the active plan is commanded now (paused, only the simulation freezes: a real robot
-        would keep moving, so it gets zero)."""
-        return self.run_state in MOVING_STATES or (self.run_state == RunState.PAUSED and self.world is not None)
+        """Whether the active plan is commanded now (paused, only a backend stepped in lockstep freezes: a
+        real robot would keep moving, so it gets zero)."""
+        return self.run_state in MOVING_STATES or (self.run_state == RunState.PAUSED and self._frozen_when_paused)
+
+    @property
+    def _frozen_when_paused(self) -> bool:
+        """Whether a pause freezes the robot with its plan: its time advances only when stepped
+        (`BackendAbilities.steps_in_lockstep`), and paused it is not."""
+        return self.backend.abilities.steps_in_lockstep
 
     # --- run control ---------------------------------------------------------------------------------
 
@@ -253,7 +259,7 @@ class ClosedLoop:
         if self._halted_t is not None:  # stopped or e-stopped: the subtask clock stood still since then
             self.sequencer.pause(self._halted_t)
         self.sequencer.resume()  # from the next state's time: the robot's clock may have run on unseen
-        if self.world is None or interrupted != RunState.PAUSED:  # a robot held still: its old plan is void
+        if not self._frozen_when_paused or interrupted != RunState.PAUSED:  # a robot held still: its old plan is void
             self.plan = None
             self._pending_plans.clear()
         self._last_control_t = self.state.t  # the interruption is no lateness of the control loop
@@ -516,12 +522,9 @@ class ClosedLoop:
         return self._surface
 
     def camera_latency_s(self) -> float:
-        """The calibrated exposure-to-stamp latency (`MappingParams.camera_latency_s`); unset, the simulated
-        camera's own offset."""
-        latency = self.config.mapping.camera_latency_s
-        if latency is not None:
-            return latency
-        return self.backend.sensor.camera_time_offset_s if isinstance(self.backend, SimRobot) else 0.0
+        """The calibrated exposure-to-stamp latency (`MappingParams.camera_latency_s`); unset, the one the
+        backend declares (`BackendAbilities.camera_latency_s`: the simulated camera's own offset)."""
+        return camera_latency(self.config.mapping.camera_latency_s, self.backend.abilities.camera_latency_s)
 
     def advance_clock(self, dt_s: float) -> RobotState:
         """No observation this period (the backend raised): keep the last state, its time moved on by dt_s,
@@ -568,16 +571,12 @@ class ClosedLoop:
         self.localize(frames)
 
     def _at_exposure(self, frames: list[DepthFrame]) -> tuple[tuple[DepthFrame, ...], RobotState]:
-        """The frames moved back to their exposure (camera latency compensated) and the robot's state at
-        the newest exposure: the map places the robot's body there, not where it is now (call under `lock`)."""
-        latency = self.camera_latency_s()
-        moved = []
-        for frame in frames:
-            stamp, exposure = self.history.at(frame.t), self.history.at(frame.t - latency)
-            moved.append(frame if stamp is None or exposure is None
-                         else at_exposure(frame, latency, stamp, exposure, self.robot))
+        """The frames moved back to their exposure (camera latency compensated, `frames_at_exposure`) and the
+        robot's state at the newest exposure: the map places the robot's body there, not where it is now (call
+        under `lock`)."""
+        moved = frames_at_exposure(frames, self.history, self.camera_latency_s(), self.robot)
         newest = self.history.at(max(f.t for f in moved))
-        return tuple(moved), newest if newest is not None else self.state
+        return moved, newest if newest is not None else self.state
 
     def control(self, state: RobotState) -> None:
         """Sequencer → references → HTMPC; the plan becomes active after the modelled actuation delay."""

@@ -1,7 +1,8 @@
 """The live threads of a `ClosedLoop`: they only schedule its stages, on wall-clock time.
 
-- physics (simulation only): `backend.step` of 10 ms of sim time, paced by `speed`, frozen while paused; it
-  first makes the cameras' renderers, and the other loops start after that (`CAMERA_SETUP_WAIT_S`);
+- physics (a backend stepped in lockstep, `BackendAbilities.steps_in_lockstep`: the simulation): `backend.step`
+  of 10 ms of sim time, paced by `speed`, frozen while paused; it first makes the cameras' renderers, and the
+  other loops start after that (`CAMERA_SETUP_WAIT_S`);
 - io: observe + command at the command rate (100 Hz), deadline-paced so the rate holds on average;
 - mapping: integrate depth frames as they arrive (only the newest of each camera when behind), the object
   and voxel maps in a process of their own (`app/runtime/map_process.py`: mapping held the GIL these loops need);
@@ -32,7 +33,7 @@ from app.runtime.map_process import NICENESS, MapProcess
 from app.runtime.problems import ProblemKind
 from app.runtime.snapshot import RunState
 from app.thread_priority import boost_threads, set_thread_niceness, thread_niceness
-from core.sim.sim_robot import SimRobot
+from core.types import steps_in_lockstep
 
 log = logging.getLogger(__name__)
 
@@ -153,7 +154,7 @@ class LiveLoops:
         self.command_period_s = 1.0 / p.command_rate_hz
         self._control_due = threading.Event()
         self._cameras_ready = threading.Event()
-        """Set once the physics thread has made the cameras' renderers (`SimRobot.prepare_cameras`)."""
+        """Set once the physics thread has made the cameras' renderers (`SteppableBackend.prepare_cameras`)."""
         self._next_control_t = loop.state.t
         self.control_steps = 0
         self.control_lateness_s: deque[float] = deque(maxlen=10000)
@@ -164,9 +165,10 @@ class LiveLoops:
                       SupervisedLoop("mapping", self._map_tick, fault), self.control,
                       SupervisedLoop("publish", self._publish, fault, lambda: 1.0 / self.publish_hz)]
         self.physics: SupervisedLoop | None = None
-        if isinstance(loop.backend, SimRobot):
+        backend = loop.backend
+        if steps_in_lockstep(backend):
             self.physics = SupervisedLoop("physics", self._physics_tick, fault, self._physics_period,
-                                          on_exit=loop.backend.close)  # GL contexts belong to that thread
+                                          on_exit=backend.close)  # GL contexts belong to that thread
             self.loops.insert(0, self.physics)
         self.watchdog = SupervisedLoop("watchdog", self._watch, fault, lambda: WATCHDOG_PERIOD_S)
 
@@ -213,7 +215,8 @@ class LiveLoops:
     # --- the ticks -----------------------------------------------------------------------------------
 
     def _speed(self) -> float:
-        return self.loop.config.speed if self.loop.world is not None else 1.0
+        """Robot seconds per wall second: the run's speed for a backend the physics loop steps, else 1."""
+        return self.loop.config.speed if self.physics is not None else 1.0
 
     def _physics_period(self) -> float:
         return PHYSICS_STEP_S / self._speed()
@@ -223,7 +226,7 @@ class LiveLoops:
 
     def _physics_tick(self) -> None:
         backend = self.loop.backend
-        if not isinstance(backend, SimRobot):
+        if not steps_in_lockstep(backend):
             return
         if not self._cameras_ready.is_set():
             try:

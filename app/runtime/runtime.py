@@ -3,7 +3,8 @@ used by the UI, the bridge's operator API and the CLI. It runs in two modes:
 
 - **lockstep** (`run_lockstep`): simulated time, one thread, deterministic, as fast as the machine
   allows; optional modelled perception and actuation delays. For tests, reports and benchmarks.
-- **live** (`start_live`): supervised wall-clock threads (`app/runtime/live_loops.py`): physics (simulation only),
+- **live** (`start_live`): supervised wall-clock threads (`app/runtime/live_loops.py`): physics (a backend stepped
+  in lockstep: the simulation),
   I/O at 100 Hz (observe, command), mapping as frames arrive, control at 10 Hz, publishing at 20 Hz.
 
 Both run the stages of one `ClosedLoop` (`app/runtime/closed_loop.py`, which also writes down the lock order);
@@ -46,8 +47,9 @@ from core.params import ConstraintKind
 from core.robot.model import RobotModel
 from core.scene import Box, Scene, load_scene, random_scene
 from core.sim.sim_robot import SimRobot
+from core.sim.simulated_backend import is_simulated
 from core.sim.world import SimWorld
-from core.types import NQ, DepthFrame, LocalEDF, Plan, RobotBackend, RobotState
+from core.types import NQ, DepthFrame, LocalEDF, Plan, RobotBackend, RobotState, steps_in_lockstep
 from tasks.schema import NamedObject, TaskSequence
 from tasks.sequence_file import load_sequence
 from tasks.sequencer import Sequencer
@@ -67,8 +69,9 @@ FAULT_BRAKE_LIMIT_S = 5.0
 class Runtime:
     """Owns the robot backend, the world (simulation) and the current `ClosedLoop`; the public API.
 
-    Without `backend`, a MuJoCo simulation of `scene` is built; a `SimRobot` passed as `backend` brings its
-    own world; any other `RobotBackend` is a real robot (no scene edits, no lockstep)."""
+    Without `backend`, a MuJoCo simulation of `scene` is built. A `backend` passed in says what it can do
+    (`RobotBackend.abilities`): a simulated one (`SimRobot`) brings its own world (scene edits, ground truth);
+    one stepped in lockstep runs in lockstep; any other is a real robot on its own clock (live only)."""
 
     def __init__(self, config: RuntimeConfig | None = None, scene: Scene | None = None,
                  sequence: TaskSequence | None = None, backend: RobotBackend | None = None) -> None:
@@ -78,7 +81,7 @@ class Runtime:
         if backend is None:
             self.world: SimWorld | None = SimWorld(self.robot, config.sim, self._scene)
             self.backend: RobotBackend = SimRobot(self.world, seed=config.seed)
-        elif isinstance(backend, SimRobot):  # a simulation built by the caller (its own cameras, seed, scene)
+        elif is_simulated(backend):  # a simulation built by the caller (its own cameras, seed, scene)
             self.world, self.backend, self.robot = backend.world, backend, backend.world.robot
             self._scene = self.world.scene()
         else:
@@ -289,8 +292,9 @@ class Runtime:
             map_process.close(keep=False)
 
     def set_speed(self, speed: float) -> None:
-        """Live mode: sim seconds per wall second (simulation only: a real robot runs in real time)."""
-        if self.world is None:
+        """Live mode: sim seconds per wall second (a backend stepped in lockstep only: a real robot runs in
+        real time)."""
+        if not self.backend.abilities.steps_in_lockstep:
             raise NotSupportedError("speed applies to the simulation; a real robot runs in real time")
         loop = self._loop
         with loop.lock:
@@ -364,13 +368,16 @@ class Runtime:
                      on_control: Callable[[Runtime], None] | None = None) -> RunLog:
         """Run in simulated time until the sequence ends (or `max_duration_s`); returns the run log.
 
-        Requires the embedded simulation. `publish_every` > 0 publishes a snapshot every that many
+        Requires a backend stepped in lockstep (`BackendAbilities.steps_in_lockstep`: the embedded
+        simulation); any other raises RuntimeError. `publish_every` > 0 publishes a snapshot every that many
         control periods; `on_control` is called after each control step (experiments edit the scene there).
         A fault ends the run once the robot has braked to rest (`run_state` FAULT, `fault` the reason);
         a faulted runtime refuses to run (`FaultError`) until `reset`.
         """
-        if not isinstance(self.backend, SimRobot):
-            raise NotSupportedError("lockstep needs a backend that steps (the embedded simulation)")
+        backend = self.backend
+        if not steps_in_lockstep(backend):
+            raise NotSupportedError(f"lockstep needs the embedded simulation: this backend ({type(backend).__name__}) "
+                                    "runs on its own clock and cannot be stepped; run it live (start_live)")
         loop = self._loop
         p = loop.controller.params
         dt_cmd = 1.0 / p.command_rate_hz
@@ -389,7 +396,7 @@ class Runtime:
 
         while self.time < t_end - 1e-9:
             loop.tick(dt_cmd, k % per_control == 0, after_control)
-            loop.guarded("physics", self.backend.step, dt_cmd)
+            loop.guarded("physics", backend.step, dt_cmd)
             k += 1
             if loop.fault_reason is not None:
                 fault_ticks += 1

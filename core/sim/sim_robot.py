@@ -1,5 +1,9 @@
 """`SimRobot`: the MuJoCo world behind the `RobotBackend` protocol, plus lockstep `step(dt)`.
 
+It declares what it can do (`abilities`): the runtime steps it in lockstep (`SteppableBackend`), it is a
+simulation whose world the runtime may edit and read the truth of (`SimulatedBackend`), and it knows its
+cameras' latency exactly (the sensor model's `camera_time_offset_s`).
+
 Cameras render at their own rate in simulated time; `observe()` hands over the frames captured since
 the previous call. A command older than `command_timeout_s` is dropped to zero velocity, as a real
 base's watchdog would.
@@ -23,7 +27,7 @@ from core.params import SensorParams
 from core.sim.depth_camera import DepthCamera
 from core.sim.odometry_drift import DriftingOdometry
 from core.sim.world import SimWorld
-from core.types import DepthFrame, Observation, Odometry, RobotState
+from core.types import BackendAbilities, DepthFrame, Observation, Odometry, RobotState
 
 log = logging.getLogger(__name__)
 
@@ -58,6 +62,12 @@ class SimRobot:
                                                   np.random.default_rng([self._seed, 1]))
         self._placements = -1
         self._sync_odometry()
+
+    @property
+    def abilities(self) -> BackendAbilities:
+        """Stepped in lockstep, simulated, and stamping frames late by the sensor model's camera offset."""
+        return BackendAbilities(steps_in_lockstep=True, simulated=True,
+                                camera_latency_s=self.sensor.camera_time_offset_s)
 
     @property
     def time(self) -> float:

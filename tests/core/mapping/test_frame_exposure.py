@@ -1,5 +1,6 @@
 """Camera latency compensated (`at_exposure`): a frame stamped late, at the pose of its stamp, is put back
-at the pose of its exposure; measured on MuJoCo frames of a pole while the base turns."""
+at the pose of its exposure; measured on MuJoCo frames of a pole while the base turns. `frames_at_exposure`
+does it for a batch from the state history, with the latency `camera_latency` chooses."""
 
 from dataclasses import replace
 
@@ -7,7 +8,7 @@ import numpy as np
 import pytest
 
 from core.mapping.depth_points import unproject
-from core.mapping.frame_exposure import at_exposure
+from core.mapping.frame_exposure import at_exposure, camera_latency, frames_at_exposure
 from core.params import SensorParams, SimParams
 from core.robot.model import READY_Q
 from core.robot.state_history import StateHistory
@@ -72,3 +73,20 @@ def test_no_latency_or_an_unknown_camera_leaves_the_pose_alone(robot, turning):
     other = replace(f, camera="thermal")
     moved = at_exposure(other, LATENCY_S, history.at(f.t), history.at(f.t - LATENCY_S), robot)
     assert moved.t == pytest.approx(f.t - LATENCY_S) and np.array_equal(moved.T_world_camera, f.T_world_camera)
+
+
+def test_a_batch_is_moved_frame_by_frame_from_the_history(robot, turning):
+    frames, history = turning
+    moved = frames_at_exposure(frames[-3:], history, LATENCY_S, robot)
+    assert isinstance(moved, tuple) and len(moved) == 3
+    for f, m in zip(frames[-3:], moved, strict=True):
+        expected = at_exposure(f, LATENCY_S, history.at(f.t), history.at(f.t - LATENCY_S), robot)
+        assert m.t == expected.t and np.array_equal(m.T_world_camera, expected.T_world_camera)
+    unplaced = frames_at_exposure(frames[-3:], StateHistory(), LATENCY_S, robot)  # no states yet: as stamped
+    assert all(m is f for f, m in zip(frames[-3:], unplaced, strict=True))
+
+
+def test_the_calibrated_latency_wins_over_the_declared_one():
+    assert camera_latency(None, 0.02) == 0.02
+    assert camera_latency(0.05, 0.02) == 0.05
+    assert camera_latency(0.0, 0.02) == 0.0  # calibrated to none: compensation off
