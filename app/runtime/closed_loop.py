@@ -492,12 +492,11 @@ class ClosedLoop:
         localizer = self.localizer
         if localizer is None:
             return
-        latency = self.camera_latency_s()
         for frame in frames:
             if not localizer.wants(frame):
                 continue
-            with self.lock:
-                exposure = self.history.at(frame.t - latency)
+            with self.lock:  # the frames are already moved back to their exposure: frame.t is that time
+                exposure = self.history.at(frame.t)
             base = (exposure or self.state).q[:3]
             localizer.correct(frame, base, self._reference_surface(frame.t))
         evidence = localizer.take_change_evidence()
