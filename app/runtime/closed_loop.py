@@ -117,6 +117,27 @@ class SequenceView:
         return SequenceView(tuple(sequencer.progress), sequencer.index, path, status)
 
 
+@dataclass(frozen=True)
+class LoopReading:
+    """What the loop publishes, read at one instant under its lock (`ClosedLoop.reading`): the runtime's
+    snapshot is assembled from this and the map's own snapshot, never from the loop's fields."""
+
+    state: RobotState
+    run_state: RunState
+    plan: Plan | None
+    view: SequenceView
+    fault: str | None
+    edf: LocalEDF | None
+    frames: tuple[DepthFrame, ...]
+    timings_ms: dict[str, float]
+    min_distance_m: float
+    config: RuntimeConfig
+    command: np.ndarray | None
+    """The last velocity command sent (None before the first)."""
+    sequence: TaskSequence
+    objects: MapObjects | None
+
+
 def finite_state(state: RobotState) -> bool:
     return bool(np.isfinite(state.t) and np.all(np.isfinite(state.q)) and np.all(np.isfinite(state.v)))
 
@@ -205,6 +226,29 @@ class ClosedLoop:
     def _sequencer(self, sequence: TaskSequence) -> Sequencer:
         p = self.controller.params
         return Sequencer(self.robot, sequence.model_copy(deep=True), self.config.sequencer, p.N, p.dt_s)
+
+    def add_step(self, seconds: float | None = None) -> bool:
+        """While paused, let the physics advance `seconds` (default one control period); False when not paused."""
+        with self.lock:
+            if self.run_state != RunState.PAUSED:
+                return False
+            self.step_budget_s += seconds or 1.0 / self.controller.params.control_rate_hz
+            return True
+
+    def set_speed(self, speed: float) -> None:
+        """Sim seconds per wall second of the live loops."""
+        with self.lock:
+            self.config = replace(self.config, speed=float(speed))
+
+    def reading(self) -> LoopReading:
+        """What the loop publishes now, one consistent read (takes `lock`)."""
+        with self.lock:
+            return LoopReading(
+                state=self.state, run_state=self.run_state, plan=self.plan, view=self.view, fault=self.fault_reason,
+                edf=self.last_edf, frames=tuple(self.latest_frames.values()), timings_ms=dict(self.timings_ms),
+                min_distance_m=self.min_distance_m, config=self.config,
+                command=self.last_qdot.copy() if self.commanded else None, sequence=self.sequencer.sequence,
+                objects=self.objects_view)
 
     @property
     def moving(self) -> bool:

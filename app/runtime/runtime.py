@@ -23,7 +23,6 @@ import math
 import threading
 from collections import deque
 from collections.abc import Callable
-from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -244,12 +243,8 @@ class Runtime:
 
     def step(self, seconds: float | None = None) -> None:
         """While paused, advance the simulation by one control period (or `seconds`)."""
-        loop = self._loop
-        with loop.lock:
-            if loop.run_state != RunState.PAUSED:
-                self.notify("step works while paused")
-                return
-            loop.step_budget_s += seconds or 1.0 / loop.controller.params.control_rate_hz
+        if not self._loop.add_step(seconds):
+            self.notify("step works while paused")
 
     def stop(self) -> None:
         """Stop the sequence; the robot comes to rest (after a fault it goes on braking within its limits);
@@ -296,9 +291,7 @@ class Runtime:
         real time)."""
         if not self.backend.abilities.steps_in_lockstep:
             raise NotSupportedError("speed applies to the simulation; a real robot runs in real time")
-        loop = self._loop
-        with loop.lock:
-            loop.config = replace(loop.config, speed=float(speed))
+        self._loop.set_speed(speed)
 
     def configure(self, map_kind: MapKind | None = None, constraint: ConstraintKind | None = None) -> None:
         """Switch map kind or constraint kind; takes effect now (the map restarts empty)."""

@@ -41,25 +41,20 @@ def status_line(run_state: RunState, sequence_status: str, plan: Plan | None, fa
 
 
 def build_snapshot(loop: ClosedLoop, seq: int, messages: tuple[str, ...], sequence_version: int) -> Snapshot:
-    """The state of everything in `loop` as one frozen value."""
-    with loop.lock:
-        state, run_state, plan, view, fault = loop.state, loop.run_state, loop.plan, loop.view, loop.fault_reason
-        edf, frames = loop.last_edf, tuple(loop.latest_frames.values())
-        timings, min_distance, config = dict(loop.timings_ms), loop.min_distance_m, loop.config
-        command = loop.last_qdot.copy() if loop.commanded else None
-        sequence = loop.sequencer.sequence
-        anchors = loop.objects_view
+    """The state of everything in `loop` as one frozen value: the loop's published reading, then the map's."""
+    r = loop.reading()
     object_map, points = _map_view(loop)
     world = loop.world
     return Snapshot(
-        seq=seq, wall_time=time.time(), state=state, run_state=run_state,
-        status=status_line(run_state, view.status, plan, fault), boxes=world.boxes() if world else (), plan=plan,
-        base_path=view.path, object_map=object_map, map_points=points, edf_slice=edf_slice(edf),
-        clouds=clouds(frames), progress=view.progress, active_index=view.index, sequence_version=sequence_version,
-        min_distance_m=min_distance, collisions=len(world.collisions) if world else 0, timings_ms=timings,
-        map_kind=config.map_kind, constraint=config.constraint, speed=config.speed, messages=messages, fault=fault,
-        command=command, depth_frames=frames, problems=loop.problems.counts(),
-        targets=target_marks(sequence, view.progress), anchors=anchors)
+        seq=seq, wall_time=time.time(), state=r.state, run_state=r.run_state,
+        status=status_line(r.run_state, r.view.status, r.plan, r.fault), boxes=world.boxes() if world else (),
+        plan=r.plan, base_path=r.view.path, object_map=object_map, map_points=points, edf_slice=edf_slice(r.edf),
+        clouds=clouds(r.frames), progress=r.view.progress, active_index=r.view.index,
+        sequence_version=sequence_version, min_distance_m=r.min_distance_m,
+        collisions=len(world.collisions) if world else 0, timings_ms=r.timings_ms, map_kind=r.config.map_kind,
+        constraint=r.config.constraint, speed=r.config.speed, messages=messages, fault=r.fault, command=r.command,
+        depth_frames=r.frames, problems=loop.problems.counts(), targets=target_marks(r.sequence, r.view.progress),
+        anchors=r.objects)
 
 
 def _map_view(loop: ClosedLoop) -> tuple[ObjectMapSnapshot | None, np.ndarray | None]:
