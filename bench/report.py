@@ -8,6 +8,7 @@ import json
 import os
 import platform
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -34,10 +35,13 @@ def machine() -> dict[str, object]:
             "load_average": [round(x, 2) for x in os.getloadavg()]}
 
 
-def bench_args(description: str, argv: list[str] | None = None) -> argparse.Namespace:
-    """The common command line: `--quick` for the short run."""
+def bench_args(description: str, argv: list[str] | None = None,
+               extra: Callable[[argparse.ArgumentParser], None] | None = None) -> argparse.Namespace:
+    """The common command line: `--quick` for the short run (`extra` adds a bench's own options)."""
     parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--quick", action="store_true", help="short run (under a minute) with the same figures")
+    if extra is not None:
+        extra(parser)
     return parser.parse_args(argv if argv is not None else sys.argv[1:])
 
 
