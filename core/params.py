@@ -448,8 +448,9 @@ class LocalizationParams:
     """Off by default: see docs/decisions.md ("Localization") for the measurement behind the choice."""
     camera: CameraName = "base"
     """Whose frames are registered (the base camera sees the floor and the boxes around the base)."""
-    rate_hz: float = 2.0
-    """Registrations per second of robot time (frames in between are skipped)."""
+    rate_hz: float = 5.0
+    """Registrations per second of robot time (frames in between are skipped). 5 Hz did better than 2 Hz on E4's
+    lap 1 (docs/decisions.md, "Localization"): turns are followed while what was seen before is still in view."""
     processing_s: float = 0.05
     """Lockstep: a correction applies at its frame's stamp plus this modelled processing time."""
     drift_m_per_sqrt_m: float = 0.01
@@ -507,6 +508,20 @@ class LocalizationParams:
     """An object's disagreement is judged on at least this many of the frame's points near it."""
     exclusion_s: float = 10.0
     """A disagreeing object stays out of the reference this long (s): the map meanwhile re-places or removes it."""
+    freeze_reference: bool = False
+    """Register against each trusted object's surface where it was when first trusted
+    (`core/localization/frozen_surfaces.py`), not where the map has it now (the map re-places objects onto frames
+    posed by a drifting estimate, so its surfaces follow the drift). Off by default: on E4's aisle it did better
+    on lap 1 for two seeds of three but worse on lap 2 for both seeds measured (it keeps what was frozen while the
+    pose had drifted; docs/decisions.md, "Localization")."""
+    freeze_sigma_m: float = 0.1
+    """An object's surface is frozen (or grows) only while the pose's std (x-y, plus the heading's at half the
+    range) is at most this (m): not after a long stretch of odometry alone. On E4's lap 1 the std stayed under
+    6 cm, so this never held a surface back there."""
+    freeze_grow_m: float = 0.1
+    """A frozen surface grows by the map's points farther than this (m) from it (newly seen parts)."""
+    refreeze_disagreeing: bool = True
+    """An object found disagreeing is dropped from the frozen reference and frozen again from the map later."""
     reference_period_s: float = 2.0
     """The loop asks the map for its trusted surfaces at most this often (s); the prepared reference is kept
     while the surfaces and the base's 1 m cell stay the same."""

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from core.localization import degeneracy, gates, registration, scan, se2
+from core.localization.frozen_surfaces import FrozenSurfaces
 from core.localization.gates import Verdict
 from core.localization.pose_filter import PoseFilter
 from core.localization.reference import FLOOR_ID, Reference, build
@@ -69,6 +70,9 @@ class Localizer:
         self._excluded: dict[int, float] = {}
         self._evidence: list[int] = []
         self._target: tuple[tuple, Reference, registration.Target] | None = None
+        self.frozen = FrozenSurfaces(p.freeze_sigma_m, p.freeze_grow_m) if p.freeze_reference else None
+        """The trusted surfaces where they were when first trusted (`frozen_surfaces.py`); None: the map's
+        surfaces as they are now."""
 
     # --- cheap: every tick ----------------------------------------------------------------------------
 
@@ -119,6 +123,10 @@ class Localizer:
         p = self.params
         self._last_registration_t = frame.t
         self._excluded = {i: until for i, until in self._excluded.items() if until > frame.t}
+        if self.frozen is not None:
+            with self.lock:
+                sigma = self.filter.sigma_xy_m(p.max_range_m / 2)
+            surface = self.frozen.update(surface, sigma, self._excluded)
         ref, target, ref_ms = self._prepared(surface, np.asarray(base_pose[:2], float))
         trusted = ref.object_ids != FLOOR_ID
         if np.sum(scan.in_view(ref.points[trusted], frame, p.max_range_m)) < p.min_trusted_points:
@@ -141,6 +149,9 @@ class Localizer:
         if disagreeing:
             for i in disagreeing:
                 self._excluded[i] = frame.t + p.exclusion_s
+            if self.frozen is not None and p.refreeze_disagreeing:
+                self.frozen.forget(disagreeing)
+                surface = self.frozen.surface
             with self.lock:
                 self._evidence.extend(disagreeing)
             ref, target, more_ms = self._prepared(surface, np.asarray(base_pose[:2], float))
@@ -205,7 +216,8 @@ class Localizer:
         """The reference and its prepared target, rebuilt only when the surface, the excluded objects or the
         base's 1 m cell change; the ms spent rebuilding (0 when kept)."""
         cell = tuple(np.floor(centre_xy).astype(int))
-        key = (id(surface), None if surface is None else surface.t, frozenset(self._excluded), cell)
+        version = None if self.frozen is None else self.frozen.version
+        key = (id(surface), None if surface is None else surface.t, version, frozenset(self._excluded), cell)
         if self._target is not None and self._target[0] == key:
             return self._target[1], self._target[2], 0.0
         p = self.params

@@ -23,9 +23,10 @@ WALL = [FLOOR, Rect(0, 2.2, (-3.0, 0.0), (3.0, 1.5), 1)]
 
 
 def _localizer(**kw) -> Localizer:
-    """Exact frames: the measurement is trusted to 5 mm / 0.06° (the defaults are for noisy frames and a
-    self-built map)."""
-    p = replace(LocalizationParams(enabled=True, min_trusted_points=50, sigma_xy_m=0.005, sigma_yaw_rad=0.001), **kw)
+    """Exact frames against the exact scene (not frozen: the scene is the reference as it is): the measurement is
+    trusted to 5 mm / 0.06° (the defaults are for noisy frames and a self-built map)."""
+    p = replace(LocalizationParams(enabled=True, min_trusted_points=50, sigma_xy_m=0.005, sigma_yaw_rad=0.001,
+                                   freeze_reference=False), **kw)
     loc = Localizer(p)
     loc.filter.P = np.diag([0.05**2, 0.05**2, math.radians(2.0) ** 2])  # drifted for a while
     return loc
@@ -118,3 +119,20 @@ def test_prediction_grows_the_covariance_with_distance_and_turning():
     assert P1[1, 1] > P0[1, 1] + 0.01**2 * 4 - 1e-12 and P1[2, 2] == pytest.approx(P0[2, 2])
     loc.predict(np.array([4.0, 0.0, 1.0]))
     assert loc.filter.P[2, 2] == pytest.approx(P0[2, 2] + 0.01**2 * 1.0)
+
+
+def test_with_a_frozen_reference_a_map_that_followed_the_drift_still_corrects_the_pose():
+    """First sight freezes the trusted surfaces (pose well known); later the map hands over the same objects
+    re-placed 4 cm off, as a drifted pose would have put them: registration still aligns to the frozen ones."""
+    loc = _localizer(freeze_reference=True)
+    loc.filter.P = np.diag([0.01**2, 0.01**2, math.radians(0.3) ** 2])  # σ ≤ freeze_sigma_m: surfaces freeze
+    frame, base = _drifted_frame(CORNER, np.zeros(3), t=1.0)
+    assert loc.correct(frame, base, surface(CORNER)).verdict == Verdict.ACCEPTED
+    assert loc.frozen is not None and set(loc.frozen.points) == {1, 2, 3}
+    loc.filter.P = np.diag([0.05**2, 0.05**2, math.radians(2.0) ** 2])  # drifted since
+    drift = np.array([0.04, -0.03, 0.0])
+    followed = surface([r.moved(np.array([*drift[:2], 0.0])) if r.object_id >= 0 else r for r in CORNER])
+    frame, base = _drifted_frame(CORNER, drift, t=2.0)
+    c = loc.correct(frame, base, replace(followed, t=1.5))
+    assert c.verdict == Verdict.ACCEPTED and c.pose is not None
+    assert np.linalg.norm(c.pose[:2]) < 0.01, "aligned to the frozen surfaces, not to where the map has them now"
