@@ -55,6 +55,14 @@ class _Shape:
     """Every point of the footprint lies within `box_fill_max_m` of the seen surface."""
 
 
+def noise_weight(points_world: np.ndarray, camera_world: np.ndarray, near_m: float = 0.5) -> np.ndarray:
+    """Inverse depth-noise variance of points seen from a camera, relative to a return at 1 m: depth noise
+    grows as range² (σ = c z²), so a return at 3 m weighs 1/81 of one at 1 m (ranges under `near_m` count
+    as `near_m`)."""
+    r = np.maximum(np.linalg.norm(points_world - np.asarray(camera_world)[None, :3], axis=1), near_m)
+    return 1.0 / r**4
+
+
 def yaw_pose(yaw: float, position: np.ndarray) -> np.ndarray:
     """4×4 pose of a rotation by `yaw` about z and a translation."""
     c, s = math.cos(yaw), math.sin(yaw)
@@ -68,7 +76,8 @@ class TrackedObject:
     """Mutable state of one mapped object (the map's own bookkeeping; snapshots are `MappedObject`s)."""
 
     def __init__(self, object_id: int, points_world: np.ndarray, voxel_m: float, prior: Posterior,
-                 floor_snap_m: float, box_fill_max_m: float = np.inf, completion: Completion | None = None) -> None:
+                 floor_snap_m: float, box_fill_max_m: float = np.inf, completion: Completion | None = None,
+                 camera_world: np.ndarray | None = None) -> None:
         self.id = object_id
         self.completion = completion or Completion(step_m=0.1, assumed_depth_m=0.0, confirm=3)
         """Cameras that saw the object and free space seen where its unseen parts could be."""
@@ -94,7 +103,7 @@ class TrackedObject:
         self._interior: np.ndarray | None = None
         self.hollow = False
         """Free space was seen inside its fitted box: the box does not stand for the object (sticky)."""
-        self.integrate(points_world)
+        self.integrate(points_world, camera_world)
 
     # --- frames -----------------------------------------------------------------------------------
 
@@ -109,14 +118,17 @@ class TrackedObject:
 
     # --- submap -----------------------------------------------------------------------------------
 
-    def integrate(self, points_world: np.ndarray) -> None:
-        """Add an observation's points to the submap."""
-        self.submap.integrate(self.to_object(points_world))
+    def integrate(self, points_world: np.ndarray, camera_world: np.ndarray | None = None,
+                  weights: np.ndarray | None = None) -> None:
+        """Add an observation's points to the submap, weighted by their depth noise when the camera is given."""
+        if weights is None and camera_world is not None:
+            weights = noise_weight(points_world, camera_world)
+        self.submap.integrate(self.to_object(points_world), weights)
         self._invalidate(_Change.SURFACE)
 
     def absorb(self, other: TrackedObject) -> None:
         """Take over the surface of another object (a duplicate of part of this one)."""
-        self.integrate(other.world_points)
+        self.integrate(other.world_points, weights=other.submap.weights)
         self.observations = max(self.observations, other.observations)
         R, t = other.T_world_object[:3, :3], other.T_world_object[:3, 3]
         for camera in other.completion.cameras:
@@ -171,6 +183,10 @@ class TrackedObject:
     def solid_world_points(self) -> np.ndarray:
         """The well-supported surface voxels (V×3) in the world."""
         return self.world_points[self._solid()]
+
+    def solid_weights(self) -> np.ndarray:
+        """The fused weight (V,) of each of `solid_world_points`."""
+        return self.submap.weights[self._solid()]
 
     def _current_shape(self) -> _Shape:
         """The box fitted to the submap's well-supported voxels, refitted first if the submap changed.
