@@ -26,7 +26,8 @@ def _nearest_acceptable(box: Box, wanted: EEPose) -> EEPose:
     env = RobotEnvelope.of(RobotModel(), HTMPCParams().delta_safe_m)
     found = check_sequence(TaskSequence(subtasks=[EESubtask(name="over", target=wanted)]), (box,), env)
     assert [f.rule for f in found] == [Rule.HAND_CLEARANCE] and found[0].nearest is not None
-    fixed = EEPose(position=found[0].nearest, rpy_deg=wanted.rpy_deg)
+    x, y, z = found[0].nearest
+    fixed = EEPose(position=(x, y, z), rpy_deg=wanted.rpy_deg)
     assert check_sequence(TaskSequence(subtasks=[EESubtask(name="over", target=fixed)]), (box,), env) == []
     return fixed
 
