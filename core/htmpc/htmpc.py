@@ -43,6 +43,7 @@ from core.htmpc.level_problem import (
     lex_limits,
     lex_tolerances,
     linearised_errors,
+    set_speed_rows,
     task_cost,
     variable_bounds,
 )
@@ -228,6 +229,7 @@ class HTMPC:
             for name in level:
                 task_cost(arrays, qp, lins[name], it.q, p)
             add_lex_rows(arrays, qp, bounds, it.q, tol)
+            set_speed_rows(arrays, qp, x0, lim.planar_speed)
             lbx, ubx = variable_bounds(qp.layout, x0, lim.q_min, lim.q_max, lim.v_max, lim.a_max, p.dt_s,
                                        it.q, self._trust_now())
             if guess is None:  # level 1 starts from the linearisation point, level l from level l−1's optimum
@@ -438,7 +440,7 @@ class HTMPC:
             ee_path = step.kin_new.p.copy()
         else:  # Gauss-Newton prediction p̄ + J_p (q − q̄)
             ee_path = kin.p + np.einsum("kij,kj->ki", kin.Jp, step.q - q_bar)
-        v = np.clip(step.v, -self.robot.limits.v_max, self.robot.limits.v_max)
+        v = self.robot.limits.clip_velocity(step.v)
         a = np.clip(step.a, -self.robot.limits.a_max, self.robot.limits.a_max)
         max_slack = float(step.slack.max()) if step.slack.size else 0.0
         status = PlanStatus.SLACK if max_slack > 1e-3 else PlanStatus.OK

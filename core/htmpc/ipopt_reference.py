@@ -153,6 +153,9 @@ class IpoptReference:
             g.append(X[:, k + 1] - ca.vertcat(qn, vn))
             lbg.append(np.zeros(18))
             ubg.append(np.zeros(18))
+            g.append(ca.sumsqr(X[9:11, k + 1]))  # the base's planar speed (the QP: a polygon inside this circle)
+            lbg.append(-np.inf * np.ones(1))
+            ubg.append(np.full(1, self.robot.limits.planar_speed ** 2))
         objective = cost  # J_l + J_aux: what the comparison uses (the slack penalty is exact-penalty bookkeeping)
         cost += ca.sum1(ca.sum2(p.slack_linear * S + p.slack_quadratic * S**2))
         if with_edf:

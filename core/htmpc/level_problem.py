@@ -83,9 +83,31 @@ def _base_template(qp: StructuredQP, params: HTMPCParams, lam: float) -> LevelAr
     lba, uba = np.zeros(L.na), np.zeros(L.na)
     uba[qp.row_col] = uba[qp.row_step] = np.inf
     lba[qp.row_col] = lba[qp.row_step] = -np.inf
+    a[qp.A_speed_v] = speed_directions(L.n_speed)
+    lba[qp.row_speed], uba[qp.row_speed] = -np.inf, np.inf  # free until `set_speed_rows` bounds them
     for arr in (h, g, a, lba, uba):
         arr.flags.writeable = False
     return LevelArrays(h, g, a, lba, uba)
+
+
+def speed_directions(n: int) -> np.ndarray:
+    """(n, 2) unit directions θ = iπ/n of the planar speed rows."""
+    theta = np.pi * np.arange(n) / n
+    return np.column_stack([np.cos(theta), np.sin(theta)])
+
+
+def set_speed_rows(arrays: LevelArrays, qp: StructuredQP, x0: np.ndarray, planar_speed: float) -> None:
+    """Bound the base's planar speed rows: |(vx, vy) · (cos θ, sin θ)| ≤ planar_speed · cos(π / 2n) at nodes 1..N,
+    a polygon with n direction pairs whose corners lie on the circle of the limit; at node 1 widened to the
+    measured velocity's own projections, so that v_1 = v_0 stays feasible (as `variable_bounds` does)."""
+    L = qp.layout
+    if L.n_speed == 0:
+        return
+    n = speed_directions(L.n_speed)
+    face = planar_speed * np.cos(np.pi / (2 * L.n_speed))
+    bound = np.full((L.N, L.n_speed), face)
+    bound[0] = np.maximum(face, np.abs(n @ x0[NQ:NQ + 2]) + 1e-6)
+    arrays.lba[qp.row_speed], arrays.uba[qp.row_speed] = -bound, bound
 
 
 def lex_tolerances(params: HTMPCParams) -> np.ndarray:

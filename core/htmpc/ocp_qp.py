@@ -3,7 +3,10 @@
 Variables stage by stage: z = [x_0, u_0, x_1, u_1, …, x_N] with x_k = [q_k, v_k] (18) and
 u_k = [a_k (9 accelerations), s_k (M collision slacks)]. Rows in HPIPM's order: for each stage k the
 dynamics gap x_{k+1} = A x_k + B u_k, then the stage's own rows (collision rows with their slack,
-lexicographic rows (7c) of earlier levels); the terminal rows (7c at node N) come last. Stage 0's rows
+lexicographic rows (7c) of earlier levels, the base's planar speed rows); the terminal rows (7c and speed at
+node N) come last. The speed rows bound (vx, vy) · (cos θ, sin θ) for `SPEED_DIRECTIONS` directions θ: a
+polygon inside the circle ‖(vx, vy)‖ ≤ the base's speed limit (the variable bounds alone are a square, whose
+corners are √2 × the limit). Stage 0's rows
 are the collision rows at the next control instant, on a_0 and s_0 only (x_0 is fixed by bounds); the
 terminal node has no slack variables (HPIPM's casadi interface has no controls at stage N), so the
 node collision rows cover nodes 1…N−1.
@@ -31,6 +34,9 @@ log = logging.getLogger(__name__)
 
 NX = 2 * NQ
 """The state of the double integrator: x = [q, v]."""
+SPEED_DIRECTIONS = 8
+"""Directions θ = iπ/8 of the base's planar speed rows: a 16-gon whose corners touch the speed circle, its faces
+at cos(π/16) = 98 % of the limit (`level_problem.set_speed_rows`)."""
 HPIPM_OPTIONS = {"mode": "speed_abs", "res_g_max": 1e-6, "res_b_max": 1e-6, "res_d_max": 1e-6, "res_m_max": 1e-6,
                  "iter_max": 60, "warm_start": 1}
 """`warm_start` 1: the interior point starts from the primal guess (the linearisation point, or the previous
@@ -71,8 +77,9 @@ class QPSolution:
 class QPLayout:
     """Index bookkeeping of the stage-wise variables and rows."""
 
-    def __init__(self, N: int, n_spheres: int, n_lex: int, slack_group: np.ndarray | None = None) -> None:
-        self.N, self.M, self.n_lex = N, n_spheres, n_lex
+    def __init__(self, N: int, n_spheres: int, n_lex: int, slack_group: np.ndarray | None = None,
+                 n_speed: int = SPEED_DIRECTIONS) -> None:
+        self.N, self.M, self.n_lex, self.n_speed = N, n_spheres, n_lex, n_speed
         self.slack_group = np.arange(n_spheres) if slack_group is None else np.asarray(slack_group, int)
         """Which slack variable each sphere's row uses (several spheres may share one)."""
         self.n_slack = int(self.slack_group.max()) + 1
@@ -80,7 +87,7 @@ class QPLayout:
         self.off_x = np.array([k * (NX + self.nu) for k in range(N + 1)])
         self.off_u = self.off_x[:N] + NX
         self.nv = N * (NX + self.nu) + NX
-        self.ng = [n_spheres] + [n_spheres + n_lex] * (N - 1) + [n_lex]
+        self.ng = [n_spheres] + [n_spheres + n_lex + n_speed] * (N - 1) + [n_lex + n_speed]
         row = 0
         self.row_gap, self.row_con = [], []
         for k in range(N):
@@ -159,7 +166,16 @@ def _pattern(layout: QPLayout) -> tuple[np.ndarray, np.ndarray]:
         A[r + L.M:r + L.M + L.n_lex, L.q(k)] = True
     r = L.row_con[L.N]
     A[r:r + L.n_lex, L.q(L.N)] = True
+    for k in range(1, L.N + 1):
+        A[speed_rows(L, k)[:, None], L.v(k).start + np.arange(2)[None, :]] = True
     return H, A
+
+
+def speed_rows(layout: QPLayout, k: int) -> np.ndarray:
+    """Row indices of the base's planar speed rows at node k (1..N): after the collision and (7c) rows."""
+    L = layout
+    start = L.row_con[k] + (L.M if k < L.N else 0) + L.n_lex
+    return start + np.arange(L.n_speed)
 
 
 def _csc_coords(mask: np.ndarray) -> tuple[ca.Sparsity, np.ndarray]:
@@ -210,6 +226,10 @@ class StructuredQP:
         self.row_step = step
         """Stage 0's rows: the collision rows at the next control instant, in a_0 (and their slack s_0)."""
         self.row_lex = np.stack([self.lex_rows(k) for k in range(1, L.N + 1)])
+        self.row_speed = np.stack([speed_rows(L, k) for k in range(1, L.N + 1)])
+        """(N, n_speed) rows of the base's planar speed at nodes 1..N; `A_speed_v` their non-zeros in (vx, vy)."""
+        self.A_speed_v = np.stack([self.A_pos[speed_rows(L, k)[:, None], L.v(k).start + np.arange(2)[None, :]]
+                                   for k in range(1, L.N + 1)])
 
     def lex_rows(self, k: int) -> np.ndarray:
         """Row indices of the (7c) rows at node k (1..N)."""

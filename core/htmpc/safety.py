@@ -39,11 +39,13 @@ def braking_plan(state: RobotState, limits: JointLimits, N: int, dt: float, stat
 
 
 def plan_is_safe(plan: Plan, limits: JointLimits, tol: float = 1e-6) -> bool:
-    """Finite everywhere and within the velocity and acceleration limits."""
+    """Finite everywhere and within the velocity (the base's planar speed too) and acceleration limits."""
     arrays = (plan.q, plan.v, plan.u)
     if not all(np.all(np.isfinite(a)) for a in arrays):
         return False
-    return bool(np.all(np.abs(plan.v) <= limits.v_max + tol) and np.all(np.abs(plan.u) <= limits.a_max + tol))
+    planar = np.hypot(plan.v[:, 0], plan.v[:, 1])
+    return bool(np.all(np.abs(plan.v) <= limits.v_max + tol) and np.all(planar <= limits.planar_speed + tol)
+                and np.all(np.abs(plan.u) <= limits.a_max + tol))
 
 
 def _prev_at(plan: Plan, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

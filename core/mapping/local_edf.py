@@ -190,7 +190,7 @@ def box_field(axes: list[np.ndarray], boxes: Iterable[tuple[np.ndarray, np.ndarr
     return np.maximum(out, -cutoff)
 
 
-def column_field(grid: EDFGrid, points: np.ndarray, cutoff: float) -> np.ndarray:
+def column_field(grid: EDFGrid, points: np.ndarray, cutoff: float, weights: np.ndarray | None = None) -> np.ndarray:
     """Signed distance (m) on the window's nodes to the columns under surface points (N×3): the solid that
     `mark_columns` marks, measured to the surface itself rather than node to node.
 
@@ -207,7 +207,7 @@ def column_field(grid: EDFGrid, points: np.ndarray, cutoff: float) -> np.ndarray
     mark_columns(grid, occupied, points)
     if not occupied.any():
         return np.full(tuple(s.stop - s.start for s in grid.window), cutoff)
-    sx, sy, sz = _surface_points(grid, points)
+    sx, sy, sz = _surface_points(grid, points, weights)
     nearest = cast(np.ndarray, ndimage.distance_transform_edt(~occupied, return_distances=False,
                                                               return_indices=True))
     i, j, k = nearest[(slice(None), *grid.window)]
@@ -251,7 +251,8 @@ def _free_side(occupied: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return unit, sheet
 
 
-def _surface_points(grid: EDFGrid, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _surface_points(grid: EDFGrid, points: np.ndarray,
+                    weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The surface point each node of the padded grid stands for, as x, y and z arrays of the grid's shape:
     the centroid of the points in its cell, else its own height at the x-y centroid of its column's points
     (else the node itself)."""
@@ -259,17 +260,19 @@ def _surface_points(grid: EDFGrid, points: np.ndarray) -> tuple[np.ndarray, np.n
     idx = np.rint((points - grid.origin) / grid.voxel).astype(int)
     ok = np.all((idx[:, :2] >= 0) & (idx[:, :2] < shape[:2]), axis=1) & (idx[:, 2] >= 0)
     idx, points = idx[ok], points[ok]
+    w = np.ones(len(points)) if weights is None else np.asarray(weights, float)[ok]
     idx[:, 2] = np.minimum(idx[:, 2], shape[2] - 1)
     col = idx[:, 0] * shape[1] + idx[:, 1]
     n2, n3 = shape[0] * shape[1], int(np.prod(shape))
     cell = col * shape[2] + idx[:, 2]
     n_col = np.maximum(np.bincount(col, minlength=n2), 1).reshape(shape[0], shape[1], 1)
     n_cell = np.bincount(cell, minlength=n3).reshape(shape)
+    w_cell = np.bincount(cell, w, n3).reshape(shape)
     has = n_cell > 0
     axes = [grid.origin[a] + grid.voxel * np.arange(shape[a]) for a in range(3)]
     out = []
     for a in range(3):
-        per_cell = np.bincount(cell, points[:, a], n3).reshape(shape) / np.maximum(n_cell, 1)
+        per_cell = np.bincount(cell, points[:, a] * w, n3).reshape(shape) / np.where(has, w_cell, 1.0)
         if a < 2:
             column = np.bincount(col, points[:, a], n2).reshape(shape[0], shape[1], 1) / n_col
             empty_col = np.bincount(col, minlength=n2).reshape(shape[0], shape[1], 1) == 0

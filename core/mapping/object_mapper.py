@@ -133,7 +133,8 @@ class ObjectMapper:
         grid = EDFGrid.around(np.asarray(centre_xy, dtype=float), p.edf_window_m, p.edf_voxel_m, EDF_PAD_M)
         if p.edf_geometry == "surface":
             occupied = grid.empty()
-            mark_points(grid, occupied, self.occupied_points())
+            pts = [o.solid_world_points() for o in self.objects.values()]
+            mark_points(grid, occupied, np.concatenate(pts) if pts else np.zeros((0, 3)))
             edf = local_edf(grid, occupied, p.theta_cutoff_m)
         else:
             edf = self._completed_edf(grid)
@@ -147,15 +148,19 @@ class ObjectMapper:
         axes = window_axes(grid)
         boxes = [o for o in self.objects.values() if o.box_like]
         values = box_field(axes, ((o.solid_pose, o.solid.extent) for o in boxes), p.theta_cutoff_m)
-        others = [o.solid_world_points() for o in self.objects.values() if not o.box_like]
+        others = [o for o in self.objects.values() if not o.box_like]
         if others:
-            values = np.minimum(values, column_field(grid, np.concatenate(others), p.theta_cutoff_m))
+            points = np.concatenate([o.solid_world_points() for o in others])
+            weights = np.concatenate([o.solid_weights() for o in others])
+            values = np.minimum(values, column_field(grid, points, p.theta_cutoff_m, weights))
         return LocalEDF(origin=grid.window_origin, voxel=grid.voxel, values=np.ascontiguousarray(values),
                         cutoff=p.theta_cutoff_m)
 
     def occupied_points(self) -> np.ndarray:
-        """Well-supported surface voxel centroids (P×3) of the live objects (no single-return noise specks)."""
-        pts = [o.solid_world_points() for o in self.objects.values()]
+        """Well-supported surface voxel centroids (P×3) of the live objects (no single-return noise specks, no
+        far-view noise in front of a surface seen better: `TrackedObject.surface_points`); the base planner's
+        obstacles."""
+        pts = [o.surface_points() for o in self.objects.values()]
         return np.concatenate(pts) if pts else np.zeros((0, 3))
 
     # --- one frame --------------------------------------------------------------------------------
@@ -185,7 +190,7 @@ class ObjectMapper:
                 if obj.id not in matched:
                     self._update_unmatched(obj, view)
             self._remove_changed()
-            self._create_all(found.leftovers)
+            self._create_all(found.leftovers, view.camera_position)
         for obj in self.objects.values():
             if obj.id in matched or np.isnan(obj.last_seen_t):  # matched now, or created by this frame
                 obj.last_seen_t = frame.t
@@ -307,7 +312,7 @@ class ObjectMapper:
             obj.submap.mark_seen_through(view.classify(obj.world_points) == THROUGH)
             self._check_hollow(obj, view)
             self._check_completion(obj, view)
-        obj.integrate(seen.points)
+        obj.integrate(seen.points, view.camera_position)
         if carve_check:
             obj.carve(p.carve_after_misses)
 
@@ -384,7 +389,7 @@ class ObjectMapper:
             log.info("object %d removed, %s (E[v] = %.2f after %d updates)", object_id, why,
                      obj.posterior.consistency, obj.updates)
 
-    def _create_all(self, leftovers: list[Segment]) -> None:
+    def _create_all(self, leftovers: list[Segment], camera: np.ndarray) -> None:
         """New objects from the leftover segments, largest first; a segment lying on the box of an object
         created just before (the part of one box that an occluder split off) joins it instead."""
         p = self.params
@@ -394,16 +399,17 @@ class ObjectMapper:
             costs = [association.truncated_mean_distance(o.distance(sample, p.association_cap_m),
                                                          p.association_cap_m) for o in fresh]
             if costs and min(costs) < p.merge_gate_m:
-                fresh[int(np.argmin(costs))].integrate(seg.points)
+                fresh[int(np.argmin(costs))].integrate(seg.points, camera)
             else:
-                fresh.append(self._create(seg.points))
+                fresh.append(self._create(seg.points, camera))
 
-    def _create(self, points: np.ndarray) -> TrackedObject:
+    def _create(self, points: np.ndarray, camera: np.ndarray | None = None) -> TrackedObject:
         p = self.params
         prior = p.prior()
         obj = TrackedObject(self._next_id, points, p.voxel_m, prior, floor_snap_m=p.floor_snap_m,
                             box_fill_max_m=p.box_fill_max_m,
-                            completion=Completion(p.edf_voxel_m, p.assumed_depth_m, p.carve_after_misses))
+                            completion=Completion(p.edf_voxel_m, p.assumed_depth_m, p.carve_after_misses),
+                            camera_world=camera)
         self.objects[obj.id] = obj
         self._next_id += 1
         return obj

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from enum import Flag, auto
 
 import numpy as np
+from scipy import ndimage
 
 from core.mapping.box_fit import BoxFit, fit_upright_box
 from core.mapping.completion import Completion
@@ -28,6 +29,12 @@ REFIT_CHANGE = 0.03
 """Refit the box's extent when the submap's voxel count changed by more than this fraction."""
 REFIT_YAW_GROWTH = 1.0
 """Refit its yaw (a convex hull) only when the submap grew by more than this fraction."""
+
+
+OUTWEIGHED_RATIO = 0.1
+"""A surface voxel below this fraction of a nearby voxel's weight is a far view's noise (`surface_points`)."""
+OUTWEIGHED_REACH = 2
+"""... nearby: within this many voxels across the floor (a far face's noise reaches 2.5 σ = 11 cm at 3 m)."""
 
 
 class _Change(Flag):
@@ -55,6 +62,14 @@ class _Shape:
     """Every point of the footprint lies within `box_fill_max_m` of the seen surface."""
 
 
+def noise_weight(points_world: np.ndarray, camera_world: np.ndarray, near_m: float = 0.5) -> np.ndarray:
+    """Inverse depth-noise variance of points seen from a camera, relative to a return at 1 m: depth noise
+    grows as range² (σ = c z²), so a return at 3 m weighs 1/81 of one at 1 m (ranges under `near_m` count
+    as `near_m`)."""
+    r = np.maximum(np.linalg.norm(points_world - np.asarray(camera_world)[None, :3], axis=1), near_m)
+    return 1.0 / r**4
+
+
 def yaw_pose(yaw: float, position: np.ndarray) -> np.ndarray:
     """4×4 pose of a rotation by `yaw` about z and a translation."""
     c, s = math.cos(yaw), math.sin(yaw)
@@ -68,7 +83,8 @@ class TrackedObject:
     """Mutable state of one mapped object (the map's own bookkeeping; snapshots are `MappedObject`s)."""
 
     def __init__(self, object_id: int, points_world: np.ndarray, voxel_m: float, prior: Posterior,
-                 floor_snap_m: float, box_fill_max_m: float = np.inf, completion: Completion | None = None) -> None:
+                 floor_snap_m: float, box_fill_max_m: float = np.inf, completion: Completion | None = None,
+                 camera_world: np.ndarray | None = None) -> None:
         self.id = object_id
         self.completion = completion or Completion(step_m=0.1, assumed_depth_m=0.0, confirm=3)
         """Cameras that saw the object and free space seen where its unseen parts could be."""
@@ -89,12 +105,13 @@ class TrackedObject:
         self._yaw: float | None = None
         self._yaw_voxels = 0
         self._world_points: np.ndarray | None = None
+        self._surface_points: np.ndarray | None = None
         self._bounds: np.ndarray | None = None
         self._grown: dict[float, Footprint] = {}
         self._interior: np.ndarray | None = None
         self.hollow = False
         """Free space was seen inside its fitted box: the box does not stand for the object (sticky)."""
-        self.integrate(points_world)
+        self.integrate(points_world, camera_world)
 
     # --- frames -----------------------------------------------------------------------------------
 
@@ -109,14 +126,17 @@ class TrackedObject:
 
     # --- submap -----------------------------------------------------------------------------------
 
-    def integrate(self, points_world: np.ndarray) -> None:
-        """Add an observation's points to the submap."""
-        self.submap.integrate(self.to_object(points_world))
+    def integrate(self, points_world: np.ndarray, camera_world: np.ndarray | None = None,
+                  weights: np.ndarray | None = None) -> None:
+        """Add an observation's points to the submap, weighted by their depth noise when the camera is given."""
+        if weights is None and camera_world is not None:
+            weights = noise_weight(points_world, camera_world)
+        self.submap.integrate(self.to_object(points_world), weights)
         self._invalidate(_Change.SURFACE)
 
     def absorb(self, other: TrackedObject) -> None:
         """Take over the surface of another object (a duplicate of part of this one)."""
-        self.integrate(other.world_points)
+        self.integrate(other.world_points, weights=other.submap.weights)
         self.observations = max(self.observations, other.observations)
         R, t = other.T_world_object[:3, :3], other.T_world_object[:3, 3]
         for camera in other.completion.cameras:
@@ -133,6 +153,7 @@ class TrackedObject:
         """Drop what `change` makes stale: the one place that knows which cache depends on what."""
         if change & (_Change.SURFACE | _Change.CARVED | _Change.POSE):
             self._world_points = None
+            self._surface_points = None
         if change & (_Change.SURFACE | _Change.CARVED | _Change.POSE | _Change.SIDES):
             self._bounds = None
         if change & (_Change.POSE | _Change.REFIT):
@@ -171,6 +192,31 @@ class TrackedObject:
     def solid_world_points(self) -> np.ndarray:
         """The well-supported surface voxels (V×3) in the world."""
         return self.world_points[self._solid()]
+
+    def surface_points(self) -> np.ndarray:
+        """The well-supported surface voxels (V×3, world) without the far views' noise in front of a surface
+        seen better: a voxel weighing less than `OUTWEIGHED_RATIO` of the heaviest voxel within
+        `OUTWEIGHED_REACH` voxels of it across the floor (its column or a neighbour's, at any height) is left
+        out. For the base planner (its grid leaves a 1.9 m aisle one cell wide; such voxels, up to 12 cm in front
+        of a face, closed it: docs/decisions.md), not the EDF: the test erodes a face's rim a little."""
+        if self._surface_points is None:
+            solid = self._solid()
+            pts, w = self.submap.points[solid], self.submap.weights[solid]
+            if len(pts) == 0:
+                self._surface_points = self.world_points[solid]
+            else:
+                col = np.floor(pts[:, :2] / self.submap.voxel_m).astype(np.int64)
+                col -= col.min(axis=0)
+                heaviest = np.zeros(tuple(col.max(axis=0) + 1))
+                np.maximum.at(heaviest, (col[:, 0], col[:, 1]), w)
+                heaviest = ndimage.maximum_filter(heaviest, size=2 * OUTWEIGHED_REACH + 1, mode="constant")
+                keep = w >= OUTWEIGHED_RATIO * heaviest[col[:, 0], col[:, 1]]
+                self._surface_points = self.world_points[solid][keep]
+        return self._surface_points
+
+    def solid_weights(self) -> np.ndarray:
+        """The fused weight (V,) of each of `solid_world_points`."""
+        return self.submap.weights[self._solid()]
 
     def _current_shape(self) -> _Shape:
         """The box fitted to the submap's well-supported voxels, refitted first if the submap changed.

@@ -133,6 +133,7 @@ def assert_brakes_within_limits(rt: Runtime, backend: FaultyRobot) -> None:
     assert len(t) >= 2, "no commands after the fault"
     assert np.all(np.isfinite(qdot))
     assert np.all(np.abs(qdot) <= lim.v_max + 1e-9)
+    assert np.all(np.hypot(qdot[:, 0], qdot[:, 1]) <= lim.planar_speed + 1e-9)
     dt = np.diff(t)
     dv = np.abs(np.diff(qdot, axis=0))
     moved = dt > 1e-9

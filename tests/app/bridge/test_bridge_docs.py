@@ -40,6 +40,7 @@ def test_ready_pose_and_speed_limits_match_the_code() -> None:
     v_max = RobotParams().v_max
     assert f"base x and y {v_max[0]:.1f} m/s, yaw {v_max[2]:.2f} rad/s" in FLAT
     assert "arm joints " + ", ".join(f"{v:g}" for v in v_max[3:]) + " rad/s" in FLAT
+    assert f"the norm of (x, y), {RobotParams().base_speed_mps:.1f} m/s too" in FLAT
 
 
 def test_the_command_rate_paragraph_states_the_codes_period_and_priorities() -> None:

@@ -7,6 +7,8 @@ import pytest
 from core.mapping import ObjectMapper
 from core.mapping.box_fit import fit_upright_box
 from core.mapping.local_edf import EDFGrid, box_field, column_field, mark_columns, signed_distance, window_axes
+from core.mapping.submap import ObjectSubmap
+from core.mapping.tracked_object import TrackedObject, noise_weight
 from core.params import MappingParams, SensorParams
 from core.robot.model import READY_Q, RobotModel
 from core.scene import Box
@@ -86,3 +88,47 @@ def test_a_box_seen_through_noisy_depth_reads_true_distances_off_its_seen_faces(
     err = edf.distance(p) - scene_signed_distance(p, (box,))
     view.close()
     assert np.median(np.abs(err)) <= 0.02 and np.percentile(np.abs(err), 95) <= 0.05, np.percentile(err, [5, 50, 95])
+
+
+def test_near_returns_outweigh_far_ones_in_the_surface_voxels():
+    """A wall at x = 2.01 seen from 3 m (σ = 0.005 z² = 4.5 cm, wider than a voxel) and then from 1 m (5 mm):
+    each point weighs its inverse noise variance (`noise_weight`), so the centroid of the voxel the wall lies in
+    is the near returns' (to a millimetre or two, median), where the plain mean was pulled towards the voxel's middle by
+    the far returns spread across it. (Voxels only the far view's noise reached keep that noise: the weights
+    cannot move them; `docs/decisions.md`, "Surface voxels fused by their depth noise".)"""
+    rng = np.random.default_rng(3)
+    n = 4000
+    wall = np.column_stack([np.full(n, 2.01), rng.uniform(-0.5, 0.5, n), rng.uniform(0.1, 0.7, n)])
+    far = wall + np.column_stack([rng.normal(0.0, 0.005 * 3.0**2, n), np.zeros((n, 2))])
+    near = wall + np.column_stack([rng.normal(0.0, 0.005, n), np.zeros((n, 2))])
+    weighted, plain = ObjectSubmap(0.05), ObjectSubmap(0.05)
+    for points, camera in ((far, np.array([-1.0, 0.0, 0.5])), (near, np.array([1.0, 0.0, 0.5]))):
+        weighted.integrate(points, noise_weight(points, camera))
+        plain.integrate(points)
+    np.testing.assert_allclose(noise_weight(np.array([[3.0, 0, 0], [1.0, 0, 0]]), np.zeros(3)), [1 / 81, 1.0])
+    on_wall = np.floor(weighted.points[:, 0] / 0.05) == 40  # the voxels 2.00–2.05 m the wall lies in
+    assert np.all(np.floor(plain.points[on_wall, 0] / 0.05) == 40)
+    off_weighted = np.median(np.abs(weighted.points[on_wall, 0] - 2.01))
+    off_plain = np.median(np.abs(plain.points[on_wall, 0] - 2.01))
+    assert off_weighted < 0.002 and off_plain > 2 * off_weighted, (off_weighted, off_plain)
+    np.testing.assert_allclose(plain.counts, weighted.counts)  # the counts (support, carving) are unchanged
+
+
+def test_the_planners_points_leave_out_far_noise_in_front_of_a_face_seen_near():
+    """The same wall as a tracked object: the far view's voxels in front of it are in its surface, but not in the
+    points the base planner gets (`surface_points`; all but a tenth of them, those beyond the two voxels it
+    looks across), which keep the wall itself."""
+    rng = np.random.default_rng(4)
+    n = 4000
+    wall = np.column_stack([np.full(n, 2.01), rng.uniform(-0.5, 0.5, n), rng.uniform(0.1, 0.7, n)])
+    far = wall + np.column_stack([rng.normal(0.0, 0.005 * 3.0**2, n), np.zeros((n, 2))])
+    near = wall + np.column_stack([rng.normal(0.0, 0.005, n), np.zeros((n, 2))])
+    p = MappingParams()
+    obj = TrackedObject(1, far, p.voxel_m, p.prior(), p.floor_snap_m, camera_world=np.array([4.9, 0.0, 0.5]))
+    obj.integrate(near, np.array([3.0, 0.0, 0.5]))
+    surface, planner = obj.solid_world_points(), obj.surface_points()
+    in_front, left = np.sum(surface[:, 0] > 2.06), np.sum(planner[:, 0] > 2.06)  # measured: 255, 4
+    assert in_front > 20  # the far view's noise, 5 cm and more in front of the wall
+    assert left <= 0.1 * in_front and np.all(planner[:, 0] <= 2.2)  # but a few stray far ones
+    on_wall = planner[np.abs(planner[:, 0] - 2.01) < 0.015]
+    assert len(np.unique(np.floor(on_wall[:, 1] / 0.05))) == 20  # the wall kept along its whole width

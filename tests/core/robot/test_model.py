@@ -19,7 +19,24 @@ def test_limits_follow_method(robot):
     assert np.all(np.isinf(lim.q_min[:3])) and np.all(np.isfinite(lim.q_min[3:]))
     assert np.all(lim.a_max > 0)
     clipped = lim.clip_velocity(np.array([5.0, -5.0, np.nan, 0, 0, 0, 0, 0, 10.0]))
-    np.testing.assert_allclose(clipped, [1.0, -1.0, 0.0, 0, 0, 0, 0, 0, 3.2])
+    r = np.sqrt(0.5)  # the base's speed over the floor is 1 m/s along the diagonal too, not √2
+    np.testing.assert_allclose(clipped, [r, -r, 0.0, 0, 0, 0, 0, 0, 3.2])
+
+
+def test_the_base_speed_over_the_floor_is_clipped_to_its_limit_in_every_direction(robot):
+    lim = robot.limits
+    assert lim.planar_speed == 1.0
+    theta = np.linspace(0.0, 2 * np.pi, 73)
+    v = np.zeros((len(theta), 9))
+    v[:, 0], v[:, 1], v[:, 2] = 3.0 * np.cos(theta), 3.0 * np.sin(theta), 0.5
+    clipped = lim.clip_velocity(v)
+    np.testing.assert_allclose(np.hypot(clipped[:, 0], clipped[:, 1]), 1.0)  # at the limit, never over it
+    np.testing.assert_allclose(np.arctan2(clipped[:, 1], clipped[:, 0]), np.arctan2(v[:, 1], v[:, 0]), atol=1e-12)
+    np.testing.assert_allclose(clipped[:, 2], 0.5)  # the yaw rate is its own limit
+    slow = v.copy()
+    slow[:, :2] *= 0.6 / 3.0
+    np.testing.assert_allclose(lim.clip_velocity(slow), slow)  # under the limit: untouched
+    assert not lim.within(np.zeros(9), np.r_[0.8, 0.8, np.zeros(7)])  # each axis within, the norm 1.13 not
 
 
 def test_collision_geometry_table(robot):

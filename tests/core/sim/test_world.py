@@ -30,6 +30,7 @@ def test_model_kinematics_equal_pinocchio(world, robot):
 def test_velocity_commands_tracked_within_limits(world, robot):
     world.set_robot(READY_Q)
     qdot = 0.8 * robot.limits.v_max * np.array([1, -1, 1, 1, -1, 1, -1, 1, -1])
+    qdot[:2] *= 0.75  # the base at 0.85 m/s over the floor, within its planar limit
     run(world, qdot, 0.3)
     v = world.state().v
     np.testing.assert_allclose(v, qdot, rtol=0.03, atol=0.01)
@@ -41,7 +42,8 @@ def test_commands_beyond_limits_are_clipped(world, robot):
     run(world, 10.0 * np.ones(9), 0.3)
     v = world.state().v
     assert np.all(np.abs(v) <= robot.limits.v_max * 1.01)
-    np.testing.assert_allclose(v, robot.limits.v_max, rtol=0.03)
+    assert np.hypot(v[0], v[1]) <= robot.limits.planar_speed * 1.01  # 1 m/s over the floor, not √2 m/s
+    np.testing.assert_allclose(v, robot.limits.clip_velocity(10.0 * np.ones(9)), rtol=0.03)
 
 
 def test_nan_command_stops(world):
