@@ -305,7 +305,7 @@ def aisle(robot: RobotModel, params: MappingParams, laps: float,
             truth = ground_truth_edf(scene.boxes, q[:2], params.edf_window_m, params.edf_voxel_m, params.theta_cutoff_m)
             spheres = robot.sphere_centres(q)
             errors.append(edf.distance(spheres) - truth.distance(spheres))
-            a, b = face_errors(edf, scene.boxes, faces, fused_points(mapper), rng)
+            a, b = face_errors(edf, scene.boxes, faces, mapper.occupied_points(), rng)
             seen.append(a)
             unseen.append(b)
     for c in cams:
@@ -389,19 +389,12 @@ def random_scene_tour(robot: RobotModel, params: MappingParams, seed: int, ticks
         edf = mapper.local_edf(q[:2])
         edf_ms.append((time.perf_counter() - t0) * 1e3)
         if k >= 10 and k % 5 == 0:
-            a, b = face_errors(edf, scene.boxes, faces, fused_points(mapper), rng)
+            a, b = face_errors(edf, scene.boxes, faces, mapper.occupied_points(), rng)
             seen.append(a)
             unseen.append(b)
     for c in cams:
         c.close()
     return seen, unseen, edf_ms
-
-
-def fused_points(mapper: ObjectMapper) -> np.ndarray:
-    """Every well-supported surface voxel of the live objects (the fused depth returns; `occupied_points`, the
-    planner's, leaves out far-view noise), for telling seen faces from unseen ones."""
-    pts = [o.solid_world_points() for o in mapper.objects.values()]
-    return np.concatenate(pts) if pts else np.zeros((0, 3))
 
 
 def seen_face_figures(seen: list[np.ndarray], unseen: list[np.ndarray], prefix: str = "") -> dict[str, float]:

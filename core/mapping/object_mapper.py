@@ -133,8 +133,7 @@ class ObjectMapper:
         grid = EDFGrid.around(np.asarray(centre_xy, dtype=float), p.edf_window_m, p.edf_voxel_m, EDF_PAD_M)
         if p.edf_geometry == "surface":
             occupied = grid.empty()
-            pts = [o.solid_world_points() for o in self.objects.values()]
-            mark_points(grid, occupied, np.concatenate(pts) if pts else np.zeros((0, 3)))
+            mark_points(grid, occupied, self.occupied_points())
             edf = local_edf(grid, occupied, p.theta_cutoff_m)
         else:
             edf = self._completed_edf(grid)
@@ -157,10 +156,8 @@ class ObjectMapper:
                         cutoff=p.theta_cutoff_m)
 
     def occupied_points(self) -> np.ndarray:
-        """Well-supported surface voxel centroids (P×3) of the live objects (no single-return noise specks, no
-        far-view noise in front of a surface seen better: `TrackedObject.surface_points`); the base planner's
-        obstacles."""
-        pts = [o.surface_points() for o in self.objects.values()]
+        """Well-supported surface voxel centroids (P×3) of the live objects (no single-return noise specks)."""
+        pts = [o.solid_world_points() for o in self.objects.values()]
         return np.concatenate(pts) if pts else np.zeros((0, 3))
 
     # --- one frame --------------------------------------------------------------------------------

@@ -17,7 +17,6 @@ from dataclasses import dataclass
 from enum import Flag, auto
 
 import numpy as np
-from scipy import ndimage
 
 from core.mapping.box_fit import BoxFit, fit_upright_box
 from core.mapping.completion import Completion
@@ -29,12 +28,6 @@ REFIT_CHANGE = 0.03
 """Refit the box's extent when the submap's voxel count changed by more than this fraction."""
 REFIT_YAW_GROWTH = 1.0
 """Refit its yaw (a convex hull) only when the submap grew by more than this fraction."""
-
-
-OUTWEIGHED_RATIO = 0.1
-"""A surface voxel below this fraction of a nearby voxel's weight is a far view's noise (`surface_points`)."""
-OUTWEIGHED_REACH = 2
-"""... nearby: within this many voxels across the floor (a far face's noise reaches 2.5 σ = 11 cm at 3 m)."""
 
 
 class _Change(Flag):
@@ -105,7 +98,6 @@ class TrackedObject:
         self._yaw: float | None = None
         self._yaw_voxels = 0
         self._world_points: np.ndarray | None = None
-        self._surface_points: np.ndarray | None = None
         self._bounds: np.ndarray | None = None
         self._grown: dict[float, Footprint] = {}
         self._interior: np.ndarray | None = None
@@ -153,7 +145,6 @@ class TrackedObject:
         """Drop what `change` makes stale: the one place that knows which cache depends on what."""
         if change & (_Change.SURFACE | _Change.CARVED | _Change.POSE):
             self._world_points = None
-            self._surface_points = None
         if change & (_Change.SURFACE | _Change.CARVED | _Change.POSE | _Change.SIDES):
             self._bounds = None
         if change & (_Change.POSE | _Change.REFIT):
@@ -192,27 +183,6 @@ class TrackedObject:
     def solid_world_points(self) -> np.ndarray:
         """The well-supported surface voxels (V×3) in the world."""
         return self.world_points[self._solid()]
-
-    def surface_points(self) -> np.ndarray:
-        """The well-supported surface voxels (V×3, world) without the far views' noise in front of a surface
-        seen better: a voxel weighing less than `OUTWEIGHED_RATIO` of the heaviest voxel within
-        `OUTWEIGHED_REACH` voxels of it across the floor (its column or a neighbour's, at any height) is left
-        out. For the base planner (its grid leaves a 1.9 m aisle one cell wide; such voxels, up to 12 cm in front
-        of a face, closed it: docs/decisions.md), not the EDF: the test erodes a face's rim a little."""
-        if self._surface_points is None:
-            solid = self._solid()
-            pts, w = self.submap.points[solid], self.submap.weights[solid]
-            if len(pts) == 0:
-                self._surface_points = self.world_points[solid]
-            else:
-                col = np.floor(pts[:, :2] / self.submap.voxel_m).astype(np.int64)
-                col -= col.min(axis=0)
-                heaviest = np.zeros(tuple(col.max(axis=0) + 1))
-                np.maximum.at(heaviest, (col[:, 0], col[:, 1]), w)
-                heaviest = ndimage.maximum_filter(heaviest, size=2 * OUTWEIGHED_REACH + 1, mode="constant")
-                keep = w >= OUTWEIGHED_RATIO * heaviest[col[:, 0], col[:, 1]]
-                self._surface_points = self.world_points[solid][keep]
-        return self._surface_points
 
     def solid_weights(self) -> np.ndarray:
         """The fused weight (V,) of each of `solid_world_points`."""

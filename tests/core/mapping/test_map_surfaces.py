@@ -8,7 +8,7 @@ from core.mapping import ObjectMapper
 from core.mapping.box_fit import fit_upright_box
 from core.mapping.local_edf import EDFGrid, box_field, column_field, mark_columns, signed_distance, window_axes
 from core.mapping.submap import ObjectSubmap
-from core.mapping.tracked_object import TrackedObject, noise_weight
+from core.mapping.tracked_object import noise_weight
 from core.params import MappingParams, SensorParams
 from core.robot.model import READY_Q, RobotModel
 from core.scene import Box
@@ -112,23 +112,3 @@ def test_near_returns_outweigh_far_ones_in_the_surface_voxels():
     off_plain = np.median(np.abs(plain.points[on_wall, 0] - 2.01))
     assert off_weighted < 0.002 and off_plain > 2 * off_weighted, (off_weighted, off_plain)
     np.testing.assert_allclose(plain.counts, weighted.counts)  # the counts (support, carving) are unchanged
-
-
-def test_the_planners_points_leave_out_far_noise_in_front_of_a_face_seen_near():
-    """The same wall as a tracked object: the far view's voxels in front of it are in its surface, but not in the
-    points the base planner gets (`surface_points`; all but a tenth of them, those beyond the two voxels it
-    looks across), which keep the wall itself."""
-    rng = np.random.default_rng(4)
-    n = 4000
-    wall = np.column_stack([np.full(n, 2.01), rng.uniform(-0.5, 0.5, n), rng.uniform(0.1, 0.7, n)])
-    far = wall + np.column_stack([rng.normal(0.0, 0.005 * 3.0**2, n), np.zeros((n, 2))])
-    near = wall + np.column_stack([rng.normal(0.0, 0.005, n), np.zeros((n, 2))])
-    p = MappingParams()
-    obj = TrackedObject(1, far, p.voxel_m, p.prior(), p.floor_snap_m, camera_world=np.array([4.9, 0.0, 0.5]))
-    obj.integrate(near, np.array([3.0, 0.0, 0.5]))
-    surface, planner = obj.solid_world_points(), obj.surface_points()
-    in_front, left = np.sum(surface[:, 0] > 2.06), np.sum(planner[:, 0] > 2.06)  # measured: 255, 4
-    assert in_front > 20  # the far view's noise, 5 cm and more in front of the wall
-    assert left <= 0.1 * in_front and np.all(planner[:, 0] <= 2.2)  # but a few stray far ones
-    on_wall = planner[np.abs(planner[:, 0] - 2.01) < 0.015]
-    assert len(np.unique(np.floor(on_wall[:, 1] / 0.05))) == 20  # the wall kept along its whole width
