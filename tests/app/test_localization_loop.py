@@ -72,17 +72,20 @@ def test_localization_against_the_scene_at_least_halves_the_drift_of_odometry_al
 @pytest.mark.slow
 def test_localization_against_the_self_built_map_bounds_the_drift_odometry_alone_exceeds():
     """E4's aisle lap 1 (seed 0, whole sensor model, object map, HTMPC), registering against the map the run
-    builds itself (no prior map, no oracle): measured max error 14 cm with localization, 24–33 cm with odometry
-    alone. Two lockstep runs are not bit-identical (multithreaded sums in the map's registration part them by
-    1e-10, which a 150 s lap amplifies to a few cm), so the bounds keep ≥ 6 cm from what was measured."""
+    builds itself (no prior map, no oracle): measured RMSE 7.1–7.6 cm and max 14–22 cm with localization,
+    12.2–12.4 cm and 24–33 cm with odometry alone. Two lockstep runs are not bit-identical (multithreaded sums
+    in the map's registration part them by 1e-10, which a 150 s lap amplifies to centimetres), so what is
+    asserted is the bound relative to odometry's own run, with room: the issue's 5 cm / 15 cm stay open."""
     odometry = pose_errors(run(0, 1, False)["rows"])[2]
     assert odometry.max() > 0.15, f"the premise: odometry alone drifts past 0.15 m (max {odometry.max():.3f} m)"
     result = run(0, 1, True)
     localized = pose_errors(result["rows"])[2]
     assert result["counts"].get(Verdict.ACCEPTED.value, 0) > 50
-    summary = f"max error {localized.max():.3f} m (odometry alone {odometry.max():.3f} m)"
-    assert localized.max() < 0.20 and localized.max() < odometry.max(), summary
-    assert np.sqrt(np.mean(localized**2)) < np.sqrt(np.mean(odometry**2)), summary
+    rmse = (float(np.sqrt(np.mean(localized**2))), float(np.sqrt(np.mean(odometry**2))))
+    summary = f"max error {localized.max():.3f} m, RMSE {rmse[0]:.3f} m (odometry alone {odometry.max():.3f}, " \
+              f"{rmse[1]:.3f} m)"
+    assert localized.max() < 0.85 * odometry.max(), summary
+    assert rmse[0] < 0.8 * rmse[1], summary
 
 
 @pytest.mark.slow

@@ -61,12 +61,20 @@ def notices(page) -> list[str]:
     return page.evaluate("() => [...document.querySelectorAll('[class*=Notification-root]')].map(e => e.textContent)")
 
 
+def _shown(page) -> np.ndarray:
+    """The pose fields of the Scene edits tab as the page shows them."""
+    return np.array([float(row_inputs(page, "Position (m)").nth(k).input_value() or "nan") for k in range(3)])
+
+
 @pytest.mark.slow
 def test_typed_pose_moves_the_box_once(session):
     """Typing x then y used to move the box to (new x, old y) first; now the gizmo previews and a button moves."""
     runtime, _, page = session
     page.get_by_role("tab", name="Scene edits").click()
     choose(page, "Box", "mover")
+    # the page first shows the picked box's pose: a field typed before that update lands is overwritten by it
+    wait_for(lambda: np.allclose(_shown(page), runtime.world.box("mover").position, atol=0.006), 30,
+             "the fields to show the picked box")
     seen, stop = set(), threading.Event()
 
     def watch() -> None:
@@ -99,10 +107,7 @@ def test_pose_fields_show_the_picked_box(session):
         choose(page, "Box", box_id)
         want = np.array(runtime.world.box(box_id).position)
 
-        def shown() -> np.ndarray:
-            return np.array([float(row_inputs(page, "Position (m)").nth(k).input_value() or "nan") for k in range(3)])
-
-        wait_for(lambda want=want: np.allclose(shown(), want, atol=0.006), 30, f"the fields to show {box_id}")
+        wait_for(lambda want=want: np.allclose(_shown(page), want, atol=0.006), 30, f"the fields to show {box_id}")
 
 
 @pytest.mark.slow
