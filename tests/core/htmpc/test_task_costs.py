@@ -8,6 +8,20 @@ from core.htmpc.task_costs import BaseTaskCost, EEBaseFrameTaskCost, EETaskCost
 from core.types import BaseReference, EEReference, References
 
 
+def _jacobian_matches_finite_differences(robot, task, q0: np.ndarray, ref: EEReference) -> np.ndarray:
+    """Assert the cost's Jacobian at q0 against central differences (step 1e-6, to 1e-6); returns it."""
+    ev = HorizonKinematicsEvaluator(robot, 1)
+    J = task.compute_jacobian(q0[None], ev(q0[None]), ref)[0]
+    eps = 1e-6
+    for j in range(9):
+        dq = np.zeros(9)
+        dq[j] = eps
+        plus = task.compute_error((q0 + dq)[None], ev((q0 + dq)[None]), ref)[0]
+        minus = task.compute_error((q0 - dq)[None], ev((q0 - dq)[None]), ref)[0]
+        np.testing.assert_allclose(J[:, j], (plus - minus) / (2 * eps), atol=1e-6)
+    return J
+
+
 def test_base_error_hand_computed():
     task = BaseTaskCost((1.0, 1.0, 0.5))
     q = np.zeros((2, 9))
@@ -35,20 +49,9 @@ def test_ee_error_uses_exact_log(robot):
 
 
 def test_ee_jacobian_matches_finite_differences(robot):
-    rng = np.random.default_rng(3)
-    q0 = robot.random_q(rng)
-    task = EETaskCost((1,) * 6)
-    ev = HorizonKinematicsEvaluator(robot, 1)
+    q0 = robot.random_q(np.random.default_rng(3))
     ref = EEReference(np.array([[0.9, 0.2, 1.0]]), pin.utils.rpyToMatrix(0.1, 0.4, -0.7)[None])
-    J = task.compute_jacobian(q0[None], ev(q0[None]), ref)[0]
-    eps = 1e-6
-    for j in range(9):
-        dq = np.zeros(9)
-        dq[j] = eps
-        plus = task.compute_error((q0 + dq)[None], ev((q0 + dq)[None]), ref)[0]
-        minus = task.compute_error((q0 - dq)[None], ev((q0 - dq)[None]), ref)[0]
-        fd = (plus - minus) / (2 * eps)
-        np.testing.assert_allclose(J[:, j], fd, atol=1e-6)
+    _jacobian_matches_finite_differences(robot, EETaskCost((1,) * 6), q0, ref)
 
 
 def test_base_frame_ee_error_is_the_pose_relative_to_the_base(robot):
@@ -65,25 +68,15 @@ def test_base_frame_ee_error_is_the_pose_relative_to_the_base(robot):
     moved = q.copy()
     moved[:, :3] += [1.5, -2.0, 0.7]  # the base drives and turns: the base-frame error does not change
     e2 = EEBaseFrameTaskCost((1,) * 6).compute_error(moved, HorizonKinematicsEvaluator(robot, 3)(moved),
-                                                 EEReference(pd[None], Rd[None], frame="base"))
+                                                     EEReference(pd[None], Rd[None], frame="base"))
     np.testing.assert_allclose(e2, e, atol=1e-9)
 
 
 def test_base_frame_ee_jacobian_matches_finite_differences(robot):
-    rng = np.random.default_rng(5)
-    q0 = robot.random_q(rng)
-    task = EEBaseFrameTaskCost((1,) * 6)
-    ev = HorizonKinematicsEvaluator(robot, 1)
+    q0 = robot.random_q(np.random.default_rng(5))
     for rot in (None, pin.utils.rpyToMatrix(0.1, 0.4, -0.7)[None]):
         ref = EEReference(np.array([[0.5, 0.2, 1.0]]), rot, frame="base")
-        J = task.compute_jacobian(q0[None], ev(q0[None]), ref)[0]
-        eps = 1e-6
-        for j in range(9):
-            dq = np.zeros(9)
-            dq[j] = eps
-            plus = task.compute_error((q0 + dq)[None], ev((q0 + dq)[None]), ref)[0]
-            minus = task.compute_error((q0 - dq)[None], ev((q0 - dq)[None]), ref)[0]
-            np.testing.assert_allclose(J[:, j], (plus - minus) / (2 * eps), atol=1e-6)
+        J = _jacobian_matches_finite_differences(robot, EEBaseFrameTaskCost((1,) * 6), q0, ref)
         np.testing.assert_allclose(J[:, :3], 0.0, atol=1e-9)  # the base's own joints do not move it
 
 
