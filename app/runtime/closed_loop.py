@@ -76,6 +76,7 @@ from core.types import (
     ReferenceSurface,
     RobotBackend,
     RobotState,
+    steps_in_lockstep,
 )
 from tasks.anchors import MapObjects
 from tasks.schema import TaskSequence
@@ -254,13 +255,8 @@ class ClosedLoop:
     def moving(self) -> bool:
         """Whether the active plan is commanded now (paused, only a backend stepped in lockstep freezes: a
         real robot would keep moving, so it gets zero)."""
-        return self.run_state in MOVING_STATES or (self.run_state == RunState.PAUSED and self._frozen_when_paused)
-
-    @property
-    def _frozen_when_paused(self) -> bool:
-        """Whether a pause freezes the robot with its plan: its time advances only when stepped
-        (`BackendAbilities.steps_in_lockstep`), and paused it is not."""
-        return self.backend.abilities.steps_in_lockstep
+        paused_frozen = self.run_state == RunState.PAUSED and steps_in_lockstep(self.backend)
+        return self.run_state in MOVING_STATES or paused_frozen
 
     # --- run control ---------------------------------------------------------------------------------
 
@@ -303,7 +299,7 @@ class ClosedLoop:
         if self._halted_t is not None:  # stopped or e-stopped: the subtask clock stood still since then
             self.sequencer.pause(self._halted_t)
         self.sequencer.resume()  # from the next state's time: the robot's clock may have run on unseen
-        if not self._frozen_when_paused or interrupted != RunState.PAUSED:  # a robot held still: its old plan is void
+        if not steps_in_lockstep(self.backend) or interrupted != RunState.PAUSED:  # a robot held still: plan void
             self.plan = None
             self._pending_plans.clear()
         self._last_control_t = self.state.t  # the interruption is no lateness of the control loop

@@ -289,7 +289,7 @@ class Runtime:
     def set_speed(self, speed: float) -> None:
         """Live mode: sim seconds per wall second (a backend stepped in lockstep only: a real robot runs in
         real time)."""
-        if not self.backend.abilities.steps_in_lockstep:
+        if not steps_in_lockstep(self.backend):
             raise NotSupportedError("speed applies to the simulation; a real robot runs in real time")
         self._loop.set_speed(speed)
 
