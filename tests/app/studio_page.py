@@ -8,6 +8,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
+import numpy as np
 import pytest
 
 from app.runtime import Runtime
@@ -46,6 +47,19 @@ def set_vector(page, label: str, values) -> None:
         field.fill(str(v))
         field.press("Enter")
     page.wait_for_timeout(300)
+
+
+def shown_vector(page, label: str) -> np.ndarray:
+    """The values the page shows in the vector row `label` (NaN where a field is empty)."""
+    return np.array([float(row_inputs(page, label).nth(k).input_value() or "nan") for k in range(3)])
+
+
+def pick_box(page, box_id: str, position) -> None:
+    """Pick `box_id` in the Scene edits tab and wait until its pose fields show `position`: a field typed
+    before the page applies that update is overwritten by it."""
+    choose(page, "Box", box_id)
+    wait_for(lambda: np.allclose(shown_vector(page, "Position (m)"), position, atol=0.006), 30,
+             f"the fields to show {box_id}")
 
 
 def choose(page, label: str, option: str) -> None:

@@ -5,7 +5,6 @@ test_studio_status_e2e.py, which shows named mapped objects)."""
 
 import re
 import threading
-import time
 
 import numpy as np
 import pytest
@@ -16,34 +15,10 @@ from app.ui.studio import Studio
 from core.scene import Box, Scene
 from tasks import TaskSequence
 from tests.app.conftest import ARTIFACTS, free_port
+from tests.app.studio_page import pick_box, set_vector, wait_for
 
 SCENE = Scene((Box("mover", (1.2, 2.0, 0.3)), Box("side", (2.5, -1.6, 0.3)), Box("far", (5.5, 1.8, 0.3))),
               robot_start=(0.0, 0.0, 0.0))
-
-
-def row_inputs(page, label: str):
-    """The input elements of a GUI row, found by its label text."""
-    label_el = page.locator("label", has_text=label).first
-    label_el.wait_for(timeout=30_000)
-    return label_el.locator("xpath=ancestor::p/../..").locator("input")
-
-
-def set_vector(page, label: str, values) -> None:
-    inputs = row_inputs(page, label)
-    for i, v in enumerate(values):
-        field = inputs.nth(i)
-        field.fill(str(v))
-        field.press("Enter")
-    page.wait_for_timeout(300)
-
-
-def wait_for(predicate, timeout_s: float, what: str) -> None:
-    deadline = time.time() + timeout_s
-    while time.time() < deadline:
-        if predicate():
-            return
-        time.sleep(0.1)
-    pytest.fail(f"timed out waiting for {what}")
 
 
 @pytest.fixture
@@ -88,8 +63,7 @@ def test_author_run_and_move_a_box_in_the_browser(studio, page):
     mid = ARTIFACTS / "studio_midrun.png"
     page.screenshot(path=str(mid))
     page.get_by_role("tab", name="Scene edits").click()
-    page.locator("label", has_text="Box").first.locator("xpath=ancestor::p/../..").locator("input").first.click()
-    page.get_by_role("option", name="mover").click()
+    pick_box(page, "mover", runtime.world.box("mover").position)
     set_vector(page, "Position (m)", (1.2, 3.0, 0.3))
     page.get_by_role("button", name="Move to typed pose").click()
     wait_for(lambda: runtime.world.box("mover").position == (1.2, 3.0, 0.3), 20, "the box to move in MuJoCo")
@@ -112,8 +86,7 @@ def test_emergency_stop_hotkey_and_errors_as_notifications(studio, page):
     page.get_by_text("EMERGENCY STOP").first.wait_for(timeout=60_000)
     # a bad edit (a box into the robot) becomes a notification; nothing changes
     page.get_by_role("tab", name="Scene edits").click()
-    page.locator("label", has_text="Box").first.locator("xpath=ancestor::p/../..").locator("input").first.click()
-    page.get_by_role("option", name="mover").click()
+    pick_box(page, "mover", runtime.world.box("mover").position)
     set_vector(page, "Position (m)", (0.0, 0.0, 0.3))  # into the robot
     page.get_by_role("button", name="Move to typed pose").click()
     page.get_by_text("overlap the robot").first.wait_for(timeout=30_000)

@@ -14,7 +14,7 @@ from app.ui import glyphs
 from core.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 from tests.app.conftest import ARTIFACTS, CHROMIUM, CHROMIUM_ARGS
-from tests.app.studio_page import choose, live_studio, open_studio, row_inputs, set_vector, wait_for
+from tests.app.studio_page import choose, live_studio, open_studio, pick_box, row_inputs, set_vector, wait_for
 
 SCENE = Scene((Box("mover", (1.2, 2.0, 0.3)), Box("side", (2.5, -1.6, 0.3))), robot_start=(0.0, 0.0, 0.0))
 GOAL = TaskSequence(name="to the far side", subtasks=[BaseSubtask(name="cross", target=BasePose(x=3.0, y=0.5),
@@ -61,20 +61,12 @@ def notices(page) -> list[str]:
     return page.evaluate("() => [...document.querySelectorAll('[class*=Notification-root]')].map(e => e.textContent)")
 
 
-def _shown(page) -> np.ndarray:
-    """The pose fields of the Scene edits tab as the page shows them."""
-    return np.array([float(row_inputs(page, "Position (m)").nth(k).input_value() or "nan") for k in range(3)])
-
-
 @pytest.mark.slow
 def test_typed_pose_moves_the_box_once(session):
     """Typing x then y used to move the box to (new x, old y) first; now the gizmo previews and a button moves."""
     runtime, _, page = session
     page.get_by_role("tab", name="Scene edits").click()
-    choose(page, "Box", "mover")
-    # the page first shows the picked box's pose: a field typed before that update lands is overwritten by it
-    wait_for(lambda: np.allclose(_shown(page), runtime.world.box("mover").position, atol=0.006), 30,
-             "the fields to show the picked box")
+    pick_box(page, "mover", runtime.world.box("mover").position)
     seen, stop = set(), threading.Event()
 
     def watch() -> None:
@@ -104,10 +96,7 @@ def test_pose_fields_show_the_picked_box(session):
     runtime, _, page = session
     page.get_by_role("tab", name="Scene edits").click()
     for box_id in ("side", "mover", "side"):
-        choose(page, "Box", box_id)
-        want = np.array(runtime.world.box(box_id).position)
-
-        wait_for(lambda want=want: np.allclose(_shown(page), want, atol=0.006), 30, f"the fields to show {box_id}")
+        pick_box(page, box_id, runtime.world.box(box_id).position)
 
 
 @pytest.mark.slow
