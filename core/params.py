@@ -290,11 +290,14 @@ class MappingParams:
     """ICP's motion is taken only when it brings the sample's mean distance below this fraction of what it was
     before ..."""
     registration_min_gain_voxels: float = 0.5
-    """... and closer by more than this many voxels (× `voxel_m`): a shift within the voxel noise is no push."""
+    """... and closer by more than this many voxels (× `voxel_m`): a shift within the voxel noise is no push;
+    and only when it explains the segment (less than `registration_trigger_fraction` of the sample left farther
+    than `registration_trigger_m`): a row of alike boxes half-explained by sliding one along it is no push."""
     icp_max_correspondence_m: float = 0.35
     icp_max_iterations: int = 30
-    icp_normal_radius_voxels: float = 2.5
-    """Radius of the point-to-plane ICP's normal estimate, in voxels (× `voxel_m`)."""
+    icp_normal_neighbours: int = 16
+    """Neighbours of each submap point in the point-to-plane ICP's normal estimate (about a 2.5-voxel disc of
+    a voxel-grid surface)."""
 
     # --- POCD consistency (eqs. 1–4) --------------------------------------------------------------
     tau_m: float = 0.2

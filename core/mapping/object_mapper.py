@@ -272,13 +272,14 @@ class ObjectMapper:
         if off_surface < p.registration_trigger_fraction or not self._movable(obj):
             return
         result = align(seen.sample, obj.world_points, p.icp_max_correspondence_m, p.icp_max_iterations,
-                       normal_radius_m=p.icp_normal_radius_voxels * p.voxel_m)
+                       p.icp_normal_neighbours)
         moved = seen.sample @ result.T[:3, :3].T + result.T[:3, 3]
         after_d = obj.distance(moved, p.association_cap_m)
         before = association.truncated_mean_distance(seen.distances, p.association_cap_m)
         after = association.truncated_mean_distance(after_d, p.association_cap_m)
         gain_m = p.registration_min_gain_voxels * p.voxel_m
-        if after < p.registration_accept_ratio * before and before - after > gain_m:
+        explained = np.mean(after_d > p.registration_trigger_m) < p.registration_trigger_fraction
+        if explained and after < p.registration_accept_ratio * before and before - after > gain_m:
             obj.move(np.linalg.inv(result.T))
             seen.distances = obj.distance(seen.sample, p.association_cap_m)
             log.debug("object %d moved by %s (cost %.3f → %.3f m)", obj.id, np.round(-result.T[:3, 3], 3),

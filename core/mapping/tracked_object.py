@@ -81,7 +81,7 @@ class TrackedObject:
         self.id = object_id
         self.completion = completion or Completion(step_m=0.1, assumed_depth_m=0.0, confirm=3)
         """Cameras that saw the object and free space seen where its unseen parts could be."""
-        self._solid_box: tuple[tuple, BoxFit] | None = None
+        self._solid_box: tuple[BoxFit, tuple[int, float], BoxFit] | None = None
         self.floor_snap_m = floor_snap_m
         self.box_fill_max_m = box_fill_max_m
         first = fit_upright_box(points_world, floor_z=0.0, floor_snap_m=floor_snap_m)
@@ -225,10 +225,13 @@ class TrackedObject:
     def solid(self) -> BoxFit:
         """The fitted box completed where the object was not seen (object frame; `completion.py`)."""
         fit, floor_z = self.fit, -self.T_world_object[2, 3]
-        key = (id(fit), self.completion.version, floor_z)
-        if self._solid_box is None or self._solid_box[0] != key:
-            self._solid_box = (key, self.completion.box(fit, floor_z))
-        return self._solid_box[1]
+        key = (self.completion.version, floor_z)
+        cached = self._solid_box
+        # the cache holds the fit itself and compares identity: a key of id(fit) matched a new fit that
+        # reused a freed one's address, and the stale box made runs differ from process to process
+        if cached is None or cached[0] is not fit or cached[1] != key:
+            self._solid_box = cached = (fit, key, self.completion.box(fit, floor_z))
+        return cached[2]
 
     @property
     def solid_pose(self) -> np.ndarray:
