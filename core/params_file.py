@@ -22,7 +22,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, create_model
 
-from core.params import HTMPCParams, MappingParams, RobotParams, SequencerParams, SimParams
+from core.params import HTMPCParams, LocalizationParams, MappingParams, RobotParams, SequencerParams, SimParams
 from core.yaml_validation import load_yaml_file, load_yaml_model
 
 
@@ -35,6 +35,7 @@ class Tunables:
     htmpc: HTMPCParams = dataclasses.field(default_factory=HTMPCParams)
     mapping: MappingParams = dataclasses.field(default_factory=MappingParams)
     sequencer: SequencerParams = dataclasses.field(default_factory=SequencerParams)
+    localization: LocalizationParams = dataclasses.field(default_factory=LocalizationParams)
 
     def sections(self) -> dict[str, Any]:
         """{section: parameter object}, e.g. as keyword arguments of the app's `RuntimeConfig`."""
@@ -56,6 +57,9 @@ POSITIVE = frozenset({
     "MappingParams.theta_cutoff_m", "MappingParams.edf_window_m", "MappingParams.icp_max_iterations",
     "MappingParams.cost_sample_points", "MappingParams.carve_check_every",
     "SequencerParams.nominal_speed_mps", "SequencerParams.grid_cell_m", "SequencerParams.replan_period_s",
+    "LocalizationParams.rate_hz", "LocalizationParams.stride_px", "LocalizationParams.source_voxel_m",
+    "LocalizationParams.max_range_m", "LocalizationParams.max_iterations", "LocalizationParams.sigma_xy_m",
+    "LocalizationParams.sigma_yaw_rad",
 })
 """Fields that must be > 0 (a rate, a size, a count); other numbers whose default is ≥ 0 must stay ≥ 0."""
 FRACTIONS = frozenset({"MappingParams.theta_stat", "MappingParams.split_fraction",
@@ -113,6 +117,7 @@ class ParamsFile(BaseModel):
     htmpc: overrides_model(HTMPCParams) | None = None  # type: ignore[valid-type]
     mapping: overrides_model(MappingParams) | None = None  # type: ignore[valid-type]
     sequencer: overrides_model(SequencerParams) | None = None  # type: ignore[valid-type]
+    localization: overrides_model(LocalizationParams) | None = None  # type: ignore[valid-type]
 
     def tunables(self, base: Tunables | None = None) -> Tunables:
         """`base` (default: the defaults) with this file's values."""

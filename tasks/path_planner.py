@@ -112,9 +112,10 @@ def _reachable_goal(grid: OccupancyGrid, goal: np.ndarray, last: bool, snap_m: f
 
 
 def plan_path(grid: OccupancyGrid, start_xy: np.ndarray, goals_xy: list[np.ndarray], spacing_m: float = 0.1,
-              snap_m: float = 0.5, notes: list[str] | None = None) -> np.ndarray:
+              snap_m: float = 0.5, notes: list[str] | None = None, first_waypoint: int = 1) -> np.ndarray:
     """Smoothed path (P×2) from start through each goal in order (blocked goals: see `_reachable_goal`;
-    what was changed is appended to `notes`)."""
+    what was changed is appended to `notes`). Messages number the goals from `first_waypoint` (the
+    subtask's own number of the first one, when earlier waypoints were passed)."""
     notes = notes if notes is not None else []
     pieces = [np.asarray(start_xy, float)[None]]
     here = np.asarray(start_xy, float)
@@ -129,7 +130,7 @@ def plan_path(grid: OccupancyGrid, start_xy: np.ndarray, goals_xy: list[np.ndarr
         try:
             cells = astar(grid, s_cell, g_cell)
         except NoPathError:
-            what = "the goal" if i == len(goals_xy) - 1 else f"waypoint {i + 1}"
+            what = "the goal" if i == len(goals_xy) - 1 else f"waypoint {first_waypoint + i}"
             raise NoPathError(f"no path to {what} ({goal[0]:.2f}, {goal[1]:.2f}) on the current map") from None
         start = here if grid.is_free(here) else grid.centre(cells[0])
         # the ends are the start and the goal themselves, also when both lie in one cell

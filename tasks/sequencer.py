@@ -438,21 +438,22 @@ class Sequencer:
                       t: float) -> np.ndarray:
         """The base's path to the subtask's goals: the current one, or a new plan when the map changed or
         the re-plan period passed."""
-        grid = None
-        if occupied is not None:
-            p = self.params
-            grid = OccupancyGrid.from_points(occupied, p.plan_bounds_m, p.grid_cell_m, p.inflation_m, p.obstacle_z_m)
-        sig = None if grid is None else grid.signature()
+        grid, sig, p = None, None, self.params
+        if occupied is not None:  # the cheap grid notices a change; the plan is made on the fine one
+            sig = OccupancyGrid.from_points(occupied, p.plan_bounds_m, p.grid_cell_m, p.inflation_m, p.obstacle_z_m,
+                                            subcells=1).signature()
         due = t - self._plan_t >= self.params.replan_period_s
         if self.path is not None and sig == self._grid_sig and not due:
             return self.path
+        if occupied is not None:
+            grid = OccupancyGrid.from_points(occupied, p.plan_bounds_m, p.grid_cell_m, p.inflation_m, p.obstacle_z_m)
         goals = [w.xy() for w in sub.path()[self._base_waypoint:]]
         notes: list[str] = []
         shift = None
         no_path = False
         try:
             if grid is not None:
-                path = plan_path(grid, state.q[:2], goals, notes=notes)
+                path = plan_path(grid, state.q[:2], goals, notes=notes, first_waypoint=self._base_waypoint + 1)
                 shift = _goal_shift(goals[-1], path[-1])  # a blocked final goal is moved to a free cell
             else:
                 path = np.array([state.q[:2], *goals])

@@ -9,7 +9,10 @@ depth noise model):
 - every returning pixel within `patch_px` of its pixel reads beyond z + m: **through**, free space was
   seen through the place of the surface: evidence that the object is gone;
 - d < z − m: **occluded** by something in front (or by the object's own near side): no evidence;
-- no return at its pixel (d = 0): **unseen**: expected, but not observed;
+- no return at its pixel (d = 0): **unseen**: expected, but not observed; unless the floor along that
+  ray lies beyond the range: then nothing could have returned from behind the point either, so the point
+  is not expected from here (a place seen against the far floor is judged by the rays that do reach the
+  floor within range, not outvoted by those that cannot);
 - otherwise: its own pixel reads beyond but a neighbour does not (a grazing surface, see below):
   **hit**.
 
@@ -140,7 +143,11 @@ class FrameView:
         zi, mi = z[idx], margin[idx]
         lab = np.full(len(idx), HIT, dtype=np.int8)
         lab[d < zi - mi] = OCCLUDED
-        lab[raw <= 0.0] = UNSEEN  # no return is no evidence, of the surface or of free space
+        silent = raw <= 0.0  # no return is no evidence, of the surface or of free space ...
+        lab[silent] = UNSEEN
+        # ... and where nothing could return behind the point either (the floor along its ray lies beyond the
+        # range), the point cannot be seen through from here: it is not expected, not counted against
+        lab[silent & ~self.floor_within_range(vi, ui)] = NOT_EXPECTED
         beyond = np.nonzero((d > zi + mi) & (raw > 0.0))[0]
         if len(beyond):
             near = self.patch_min(vi[beyond], ui[beyond])
@@ -156,6 +163,18 @@ class FrameView:
         height = self.camera_position[2] + d * ray_dz
         floor = height <= floor_threshold(d, ray_dz, self.floor_height_m, self.noise_coeff_m)
         return np.where((d > 0.0) & ~floor, d, np.inf)
+
+    def floor_within_range(self, v: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Would the rays of pixels (v, u) meet the floor within the range? (Always, without a floor height:
+        then every silent pixel is unseen, as before the floor was known.)"""
+        if not np.isfinite(self.floor_height_m):
+            return np.ones(len(v), bool)
+        K, R = self.K, self.R_cw
+        ray_dz = R[0, 2] * (u - K[0, 2]) / K[0, 0] + R[1, 2] * (v - K[1, 2]) / K[1, 1] + R[2, 2]
+        drop = self.floor_height_m - self.camera_position[2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            depth = np.where(ray_dz < 0.0, drop / ray_dz, np.inf)
+        return depth < self.range_m
 
     def patch_min(self, v: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Nearest return (m) within ±`patch_px` pixels of each pixel (v, u); the floor counts as infinitely far,
