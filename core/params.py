@@ -425,8 +425,9 @@ class SequencerParams:
     goal_slowdown_m: float = 0.8
     """Within this distance of the final goal the reference stops advancing past it."""
     stall_s: float = 10.0
-    """A base subtask whose error to its goal has not fallen by `stall_progress_m` for this long (s, subtask
-    time) says "blocked" with the nearest obstacle (the run goes on until its timeout or a Skip)."""
+    """A base subtask whose distance to go along its planned path (through the waypoints ahead; the
+    straight-line error without a plan) has not fallen by `stall_progress_m` for this long (s, subtask time)
+    says "blocked" with the nearest obstacle (the run goes on until its timeout or a Skip)."""
     stall_progress_m: float = 0.1
     anchor_follow_m: float = 0.1
     """An anchored target that moved more than this since the plan was made (the map found its object

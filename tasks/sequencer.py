@@ -292,7 +292,7 @@ class Sequencer:
             return None
         refs = self._references(sub, state, occupied_points, t)
         if isinstance(sub, BaseSubtask):
-            self._watch_stall(pos_err, state, occupied_points, t)
+            self._watch_stall(self._distance_to_go(pos_err), pos_err, state, occupied_points, t)
         self._switched = False
         return refs
 
@@ -320,12 +320,22 @@ class Sequencer:
         self._improved_t = t
         return t
 
-    def _watch_stall(self, pos_err: float, state: RobotState, occupied: np.ndarray | None, t: float) -> None:
-        """Blocked: the base's error to its goal has not fallen by `stall_progress_m` for `stall_s`; the message
-        names the distance to the nearest occupied point (cleared once the base makes progress again)."""
+    def _distance_to_go(self, pos_err: float) -> float:
+        """What is left of the planned path (through the waypoints still ahead), or the straight-line error
+        without one: a route round an island first leads away from its goal, and that is progress."""
+        path = self.path
+        if path is None or len(path) < 2:
+            return pos_err
+        return max(float(path_arclength(path)[-1]) - self._s_progress, 0.0)
+
+    def _watch_stall(self, to_go: float, pos_err: float, state: RobotState, occupied: np.ndarray | None,
+                     t: float) -> None:
+        """Blocked: the base's distance to go along its plan (`_distance_to_go`) has not fallen by
+        `stall_progress_m` for `stall_s`; the message names the distance to the goal and to the nearest
+        occupied point (cleared once the base makes progress again)."""
         p = self.progress[self.index]
-        if pos_err < self._best_error - self.params.stall_progress_m:
-            self._best_error, self._improved_t = pos_err, t
+        if to_go < self._best_error - self.params.stall_progress_m:
+            self._best_error, self._improved_t = to_go, t
             if p.blocked is not None:
                 self.progress[self.index] = replace(p, blocked=None, message="")
             return

@@ -275,3 +275,17 @@ def test_a_base_that_makes_no_progress_says_blocked_with_the_nearest_obstacle(ro
     assert "blocked" in s.status_line()
     s.update(state_at(1.0, 0.0), post, 11.0)
     assert s.progress[0].blocked is None and "blocked" not in s.progress[0].message
+
+
+def test_a_route_that_first_leads_away_from_the_goal_is_progress_not_blocked(robot):
+    """Round an island through a waypoint behind the start: for 12 s the base drives away from its goal, so
+    the straight-line error grows; the distance to go along the plan falls, and nothing says blocked."""
+    seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=3.0, y=0.0), waypoints=[BasePose(x=-4.0, y=3.0),
+                                                                                         BasePose(x=3.0, y=3.0)],
+                                             timeout_s=120.0)])
+    s = Sequencer(robot, seq)
+    for t in np.arange(0.0, 12.0, 0.5):
+        xy = np.array([0.0, 0.0]) + (t / 12.0) * np.array([-4.0, 3.0])
+        s.update(state_at(*xy, yaw=2.5), np.zeros((0, 3)), t)
+        assert s.progress[0].blocked is None, (t, s.progress[0].message)
+    assert s.progress[0].position_error_m > 3.0 + 4.0  # farther from the goal than at the start
