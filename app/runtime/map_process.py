@@ -1,6 +1,6 @@
 """`MapProcess`: an object or voxel map run in its own process, behind the `WorldMap` interface.
 
-Why: mapping is the heaviest CPU work of a live run (numpy, scipy, open3d), and much of it holds the GIL.
+Why: mapping is the heaviest CPU work of a live run (numpy, scipy), and much of it holds the GIL.
 In the runtime's process it starved the threads that must keep time, the I/O loop and the bridge's event
 loop: late commands and spurious stale-state pauses (figures in bench/closed_loop.py). In a process of
 its own it competes only for a core.

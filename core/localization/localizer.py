@@ -69,7 +69,7 @@ class Localizer:
         self._last_registration_t = -math.inf
         self._excluded: dict[int, float] = {}
         self._evidence: list[int] = []
-        self._target: tuple[tuple, Reference, registration.Target] | None = None
+        self._target: tuple[ReferenceSurface | None, tuple, Reference, registration.Target] | None = None
         self.frozen = FrozenSurfaces(p.freeze_sigma_m, p.freeze_grow_m) if p.freeze_reference else None
         """The trusted surfaces where they were when first trusted (`frozen_surfaces.py`); None: the map's
         surfaces as they are now."""
@@ -217,13 +217,16 @@ class Localizer:
         base's 1 m cell change; the ms spent rebuilding (0 when kept)."""
         cell = tuple(np.floor(centre_xy).astype(int))
         version = None if self.frozen is None else self.frozen.version
-        key = (id(surface), None if surface is None else surface.t, version, frozenset(self._excluded), cell)
-        if self._target is not None and self._target[0] == key:
-            return self._target[1], self._target[2], 0.0
+        key = (None if surface is None else surface.t, version, frozenset(self._excluded), cell)
+        cached = self._target
+        # the surface itself is held and compared by identity: an id() in the key can match a new surface
+        # that reuses a freed one's address (the same defect once made lockstep runs differ)
+        if cached is not None and cached[0] is surface and cached[1] == key:
+            return cached[2], cached[3], 0.0
         p = self.params
         ref = build(surface, np.floor(centre_xy) + 0.5, p.reference_crop_m, p.floor_step_m, self._excluded)
         target = registration.Target(ref.points)
-        self._target = (key, ref, target)
+        self._target = (surface, key, ref, target)
         return ref, target, target.ms
 
     def _record(self, correction: Correction) -> Correction:
