@@ -416,6 +416,11 @@ class SequencerParams:
     (`RobotParams.footprint_radius_m`) and leave the clearance to the constraint: with 0.8 m planned paths
     kept h ≈ 0 and the CBF and the EDF constraint rarely differed (E2). (With 0.62 m in E1 the robot drove
     close enough to the vacated places to clear the voxel map's phantoms: a different experiment.)"""
+    inflation_min_m: float = 0.65
+    """Where `inflation_m` leaves no path (or skips a waypoint), A* plans again with this: the base's half
+    width 0.395 m + delta_safe 0.25 m, the narrowest passage it drives through lengthwise with delta_safe on
+    both sides (a 1.9 m aisle keeps 0.6 m of planning width instead of 0.3 m, room for a map or a pose estimate
+    some 10 cm off). The operator is told ("a narrow passage")."""
     obstacle_z_m: tuple[float, float] = (0.05, 2.0)
     """Occupied points between these heights block the base."""
     replan_period_s: float = 1.0

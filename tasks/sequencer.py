@@ -448,22 +448,20 @@ class Sequencer:
                       t: float) -> np.ndarray:
         """The base's path to the subtask's goals: the current one, or a new plan when the map changed or
         the re-plan period passed."""
-        grid, sig, p = None, None, self.params
+        sig, p = None, self.params
         if occupied is not None:  # the cheap grid notices a change; the plan is made on the fine one
             sig = OccupancyGrid.from_points(occupied, p.plan_bounds_m, p.grid_cell_m, p.inflation_m, p.obstacle_z_m,
                                             subcells=1).signature()
         due = t - self._plan_t >= self.params.replan_period_s
         if self.path is not None and sig == self._grid_sig and not due:
             return self.path
-        if occupied is not None:
-            grid = OccupancyGrid.from_points(occupied, p.plan_bounds_m, p.grid_cell_m, p.inflation_m, p.obstacle_z_m)
         goals = [w.xy() for w in sub.path()[self._base_waypoint:]]
         notes: list[str] = []
         shift = None
         no_path = False
         try:
-            if grid is not None:
-                path = plan_path(grid, state.q[:2], goals, notes=notes, first_waypoint=self._base_waypoint + 1)
+            if occupied is not None:
+                path, notes = self._plan(occupied, state.q[:2], goals)
                 shift = _goal_shift(goals[-1], path[-1])  # a blocked final goal is moved to a free cell
             else:
                 path = np.array([state.q[:2], *goals])
@@ -488,6 +486,32 @@ class Sequencer:
             self.progress[self.index] = replace(p, message=message, goal_shift=shift, no_path=no_path,
                                                 blocked=None if no_path else p.blocked)
         return path
+
+    def _plan(self, occupied: np.ndarray, start_xy: np.ndarray, goals: list[np.ndarray]
+              ) -> tuple[np.ndarray, list[str]]:
+        """A path with the preferred clearance (`inflation_m`), or, where that leaves no path or skips a
+        waypoint, with the least the base needs (`inflation_min_m`); raises `NoPathError` when neither has one."""
+        p = self.params
+        best: tuple[np.ndarray, list[str], int] | None = None
+        error: NoPathError | None = None
+        for inflation in dict.fromkeys((p.inflation_m, min(p.inflation_min_m, p.inflation_m))):
+            grid = OccupancyGrid.from_points(occupied, p.plan_bounds_m, p.grid_cell_m, inflation, p.obstacle_z_m)
+            notes: list[str] = []
+            try:
+                path = plan_path(grid, start_xy, goals, notes=notes, first_waypoint=self._base_waypoint + 1)
+            except NoPathError as err:
+                error = err
+                continue
+            skipped = sum("skipped" in n for n in notes)
+            if best is None or skipped < best[2]:
+                if inflation < p.inflation_m:
+                    notes.append(f"a narrow passage: planned with {inflation:.2f} m of clearance")
+                best = (path, notes, skipped)
+            if skipped == 0:
+                break
+        if best is None:
+            raise error or NoPathError("no path to the goal on the current map")
+        return best[0], best[1]
 
     def _pass_waypoints(self, sub: BaseSubtask, xy: np.ndarray, path: np.ndarray, s: np.ndarray) -> None:
         """Mark intermediate base waypoints passed, so a re-plan never leads back to one.

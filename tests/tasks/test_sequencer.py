@@ -289,3 +289,22 @@ def test_a_route_that_first_leads_away_from_the_goal_is_progress_not_blocked(rob
         s.update(state_at(*xy, yaw=2.5), np.zeros((0, 3)), t)
         assert s.progress[0].blocked is None, (t, s.progress[0].message)
     assert s.progress[0].position_error_m > 3.0 + 4.0  # farther from the goal than at the start
+
+
+def test_a_passage_too_narrow_for_the_preferred_clearance_is_planned_with_the_least_the_base_needs(robot):
+    """A 1.5 m gap between two walls: no path with 0.8 m of clearance (0 m left), one with 0.65 m (0.2 m left);
+    the operator is told it is a narrow passage. A gap of 1.2 m is too narrow even for that: no path."""
+    def walls(gap_m: float) -> np.ndarray:
+        ys = np.arange(gap_m / 2, 8.0, 0.05)  # to the edge of the planning grid: no way round
+        side = np.c_[np.full(len(ys), 2.0), ys, np.full(len(ys), 0.3)]
+        return np.concatenate([side, side * [1, -1, 1]])
+
+    seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=4.0, y=0.0), timeout_s=60.0)])
+    s = Sequencer(robot, seq)
+    s.update(state_at(0.0, 0.0), walls(1.5), 0.0)
+    p = s.progress[0]
+    assert not p.no_path and "narrow passage: planned with 0.65 m of clearance" in p.message
+    assert np.all(np.abs(s.path[np.abs(s.path[:, 0] - 2.0) < 0.05, 1]) < 0.1)  # through the gap's middle
+    s = Sequencer(robot, seq)
+    s.update(state_at(0.0, 0.0), walls(1.2), 0.0)
+    assert s.progress[0].no_path
