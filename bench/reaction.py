@@ -84,24 +84,40 @@ def cruising(rt: Runtime) -> bool:
 
 
 def place(rt: Runtime, stamps: StageStamps) -> Placement:
-    """The box straight ahead, its near face `GAP_M` beyond the base's front; the placement as it happened."""
+    """The box straight ahead, its near face `GAP_M` beyond the base's front; the placement as it happened, in the
+    world the robot believes in (its odometry drifts: the map, the EDF, the frames and the commands are all there)."""
     world = rt.require_world()
     with world.lock:  # no physics step between the edit and reading its time
         q = world.state().q
+        believed = rt.state.q  # the loop's estimate, at most one I/O period (10 ms) older
         heading = np.array([math.cos(q[2]), math.sin(q[2])])
         reach = body_reach_m(world, "base", q)
         centre = q[:2] + heading * (reach + GAP_M + PAPER_BOX_M / 2)
         rt.move_box("probe", (float(centre[0]), float(centre[1]), PARK[2]), float(q[2]))
         t, wall = world.time, stamps.now()
         h = body_distance(world, "base", (world.box("probe"),)) - rt.controller.params.delta_safe_m
-    before = [c for c in list(stamps.commands) if c.wall <= wall]
-    v_before = float(np.dot(before[-1].base_v, heading)) if before else float("nan")
-    centre3 = np.array([*centre, PARK[2]])
-    face = centre3 - np.array([*heading, 0.0]) * PAPER_BOX_M / 2
+    to_believed = believed_frame(q, believed)
     axes = np.array([[heading[0], heading[1], 0.0], [-heading[1], heading[0], 0.0], [0.0, 0.0, 1.0]])
     signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)
-    corners = centre3 + PAPER_BOX_M / 2 * signs @ axes
-    return Placement(wall, t, np.vstack([centre3, corners]), face, heading, v_before, h)
+    centre3 = np.array([*centre, PARK[2]])
+    points = to_believed(np.vstack([centre3, centre3 + PAPER_BOX_M / 2 * signs @ axes,
+                                    centre3 - axes[0] * PAPER_BOX_M / 2]))
+    towards = to_believed(np.array([[*heading, 0.0]]), rotate_only=True)[0, :2]
+    before = [c for c in list(stamps.commands) if c.wall <= wall]
+    v_before = float(np.dot(before[-1].base_v, towards)) if before else float("nan")
+    return Placement(wall, t, points[:-1], points[-1], towards, v_before, h)
+
+
+def believed_frame(true_q: np.ndarray, believed_q: np.ndarray):
+    """Points of the true world (P×3) in the world the robot believes in, from its true and believed base pose."""
+    dyaw = float(believed_q[2] - true_q[2])
+    R = np.array([[math.cos(dyaw), -math.sin(dyaw), 0.0], [math.sin(dyaw), math.cos(dyaw), 0.0], [0.0, 0.0, 1.0]])
+    shift = np.array([believed_q[0], believed_q[1], 0.0])
+    origin = np.array([true_q[0], true_q[1], 0.0])
+
+    def transform(points: np.ndarray, rotate_only: bool = False) -> np.ndarray:
+        return points @ R.T if rotate_only else (points - origin) @ R.T + shift
+    return transform
 
 
 def await_reaction(rt: Runtime, stamps: StageStamps, placement: Placement) -> Reaction | str:
