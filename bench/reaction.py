@@ -52,6 +52,8 @@ class ReactionRun:
     constrained: int = 0
     """Placements whose barrier h was below v / gamma when the box appeared."""
     placements: int = 0
+    health: dict[str, float] = field(default_factory=dict)
+    """How the live loops kept time meanwhile (`loop_health`)."""
 
     @property
     def reactions(self) -> list[Reaction]:
@@ -145,7 +147,8 @@ def measure_reactions(events: int, max_wall_s: float, config: RuntimeConfig | No
     gamma = rt.controller.params.gamma
     rt.start_live()
     rt.start()
-    end = time.perf_counter() + max_wall_s
+    start = time.perf_counter()
+    end = start + max_wall_s
     try:
         while len(run.events) < events and time.perf_counter() < end and rt.fault is None:
             if not cruising(rt) or not any(i.edf is not None for i in list(stamps.integrations)[-3:]):
@@ -162,6 +165,25 @@ def measure_reactions(events: int, max_wall_s: float, config: RuntimeConfig | No
                 run.rejected.append(result)
                 log.info("placement %d: %s", run.placements, result)
             time.sleep(FORGET_S)
+        run.health = loop_health(rt, stamps, time.perf_counter() - start)
     finally:
         rt.shutdown()
     return run
+
+
+def loop_health(rt: Runtime, stamps: StageStamps, wall_s: float) -> dict[str, float]:
+    """Control steps started more than one period late (% of steps; robot time), the 99th percentile of how late
+    they started (ms), the control step's time (p95 ms, the latest `keep_s`), and the frames the map integrated per
+    wall second of each camera (the mapping loop keeps only the newest frame of each camera when behind)."""
+    live = rt.live
+    if live is None:
+        return {}
+    steps = max(live.control_steps, 1)
+    lateness = np.asarray(live.control_lateness_s, float) * 1e3
+    control_ms = [(s.wall_solve_end - s.wall_wake) * 1e3 for s in list(stamps.controls)]
+    health = {"control_steps": float(live.control_steps), "control_late_pct": 100.0 * live.control.stats.late / steps,
+              "control_lateness_p99_ms": float(np.percentile(lateness, 99)) if lateness.size else float("nan"),
+              "control_step_p95_ms": float(np.percentile(control_ms, 95)) if control_ms else float("nan"),
+              "physics_late": float(live.physics.stats.late) if live.physics is not None else float("nan")}
+    health |= {f"{camera}_frames_integrated_hz": n / wall_s for camera, n in stamps.frames_integrated.items()}
+    return health

@@ -136,7 +136,8 @@ def analyse(stamps: StageStamps, placement: Placement, voxel_m: float, range_m: 
     carried = carrying_integration(stamps, placement, voxel_m, range_m)
     first = first_control_holding(stamps, placement, voxel_m)
     if carried is None or first is None:
-        return "no integration or control step holds the box"
+        return ("the map held something at the box's face before any frame saw the box (an earlier box's remains)"
+                if first is not None else "no control step holds the box")
     integration, frame = carried
     exposed, stamped = stamps.wall_at(frame.exposure_t), stamps.wall_at(frame.stamp_t)
     if exposed is None or stamped is None:

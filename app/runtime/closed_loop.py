@@ -622,7 +622,7 @@ class ClosedLoop:
         latest = getattr(world_map, "latest_edf", None)
         edf, ready = latest if latest is not None else (None, t1)
         edf_ms = float(world_map.timings_ms.get("edf", 0.0)) if edf is not None else 0.0
-        self.stamps.integrations.append(IntegrationStamp(tuple(FrameStamp.of(f, latency) for f in frames), t0,
+        self.stamps.integration(IntegrationStamp(tuple(FrameStamp.of(f, latency) for f in frames), t0,
                                                          min(ready, t1), edf, edf_ms))
 
     def _at_exposure(self, frames: list[DepthFrame]) -> tuple[tuple[DepthFrame, ...], RobotState]:

@@ -99,6 +99,8 @@ class StageStamps:
         self.integrations: deque[IntegrationStamp] = deque(maxlen=int(keep_s * 40))
         self.controls: deque[ControlStamp] = deque(maxlen=int(keep_s * 40))
         self.commands: deque[CommandStamp] = deque(maxlen=int(keep_s * command_hz))
+        self.frames_integrated: dict[str, int] = {}
+        """Frames the map integrated since the stamps were set, per camera (the whole run, not only `keep_s`)."""
 
     @staticmethod
     def now() -> float:
@@ -106,6 +108,11 @@ class StageStamps:
 
     def physics_step(self, t: float) -> None:
         self.physics.append((t, time.perf_counter()))
+
+    def integration(self, stamp: IntegrationStamp) -> None:
+        self.integrations.append(stamp)
+        for frame in stamp.frames:
+            self.frames_integrated[frame.camera] = self.frames_integrated.get(frame.camera, 0) + 1
 
     def command(self, t: float, qdot: np.ndarray, plan: Plan | None) -> None:
         self.commands.append(CommandStamp(time.perf_counter(), t, (float(qdot[0]), float(qdot[1])), plan))

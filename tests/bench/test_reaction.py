@@ -51,3 +51,9 @@ def test_the_parts_happened_in_order_and_add_up_to_the_whole(run) -> None:
         assert sum(r.parts_ms.values()) == pytest.approx(r.total_ms, abs=1e-6)
         assert 0.0 <= r.processing_ms <= r.total_ms
         assert r.sim_ms > 0.0
+
+
+def test_the_loops_health_is_read_from_the_same_run(run) -> None:
+    health = run.health
+    assert health["control_steps"] > 0 and 0.0 <= health["control_late_pct"] <= 100.0
+    assert health["hand_frames_integrated_hz"] > 0.0 and health["base_frames_integrated_hz"] > 0.0
