@@ -51,6 +51,7 @@ from app.runtime.map_process import MapProcess, MapProcessError
 from app.runtime.problems import ProblemKind, ProblemLog
 from app.runtime.run_log import RunLog
 from app.runtime.snapshot import RunState
+from app.runtime.stage_stamps import ControlStamp, FrameStamp, IntegrationStamp, StageStamps
 from app.runtime.unknown_ahead import planner_points, unknown_ahead
 from app.target_check import recheck_anchored
 from core.errors import StudioError
@@ -204,6 +205,8 @@ class ClosedLoop:
         self.names = ObjectNames(config.sequencer, config.mapping)
         self.objects_view: MapObjects | None = None
         """What the sequencer saw of the named objects at the last control step (None: nothing anchored)."""
+        self.stamps: StageStamps | None = None
+        """Benchmarks: wall-clock stamps of the stages (`stage_stamps.py`; None records nothing)."""
 
     def _match_sensing(self) -> None:
         """The simulated robot perceives through the sensor model (`SimParams.sensor`), except with the
@@ -605,9 +608,22 @@ class ClosedLoop:
         t0 = time.perf_counter()
         with self.using_map() as world_map:
             world_map.integrate(Observation(state=state, frames=frames, odometry=None))
+        t1 = time.perf_counter()
         with self.lock:
-            self.timings_ms["mapping"] = (time.perf_counter() - t0) * 1e3
+            self.timings_ms["mapping"] = (t1 - t0) * 1e3
+        if self.stamps is not None:
+            self._stamp_integration(world_map, frames, t0, t1)
         self.localize(frames)
+
+    def _stamp_integration(self, world_map: WorldMap, frames: tuple[DepthFrame, ...], t0: float, t1: float) -> None:
+        """Record an integration (benchmarks): its frames, wall span, and the EDF an isolated map built after it."""
+        assert self.stamps is not None
+        latency = self.camera_latency_s()
+        latest = getattr(world_map, "latest_edf", None)
+        edf, ready = latest if latest is not None else (None, t1)
+        edf_ms = float(world_map.timings_ms.get("edf", 0.0)) if edf is not None else 0.0
+        self.stamps.integration(IntegrationStamp(tuple(FrameStamp.of(f, latency) for f in frames), t0,
+                                                         min(ready, t1), edf, edf_ms))
 
     def _at_exposure(self, frames: list[DepthFrame]) -> tuple[tuple[DepthFrame, ...], RobotState]:
         """The frames moved back to their exposure (camera latency compensated, `frames_at_exposure`) and the
@@ -629,17 +645,21 @@ class ClosedLoop:
                 occupied = world_map.occupied_points()
                 t_edf = time.perf_counter()
                 edf = world_map.local_edf(state.q[:2])
-                edf_ms = (time.perf_counter() - t_edf) * 1e3
+                t_edf_end = time.perf_counter()
+                edf_ms = (t_edf_end - t_edf) * 1e3
                 objects = map_objects(self.names, world_map, sequencer.sequence, self.world, state.t)
             refs = sequencer.update(state, planner_points(occupied, edf), state.t, objects)
             self._tell_anchor_moves(sequencer, objects, state.t)
             notice = self._unknown_notice(state, refs, edf)
             plan, solve_ms = None, math.nan
+            t_solve = t_solved = time.perf_counter()
             if refs is not None:
-                t_solve = time.perf_counter()
                 plan = controller.solve(state, refs, edf)
-                solve_ms = (time.perf_counter() - t_solve) * 1e3
+                t_solved = time.perf_counter()
+                solve_ms = (t_solved - t_solve) * 1e3
                 self.problems.observe_plan(plan, state.t, solve_ms)
+            if self.stamps is not None:
+                self.stamps.controls.append(ControlStamp(state.t, t0, t_edf_end, t_solve, t_solved, edf, plan))
             with self.lock:
                 self.last_edf, self.view, self.objects_view = edf, SequenceView.of(sequencer, notice), objects
                 self.timings_ms["edf"] = edf_ms
@@ -692,18 +712,21 @@ class ClosedLoop:
         with self.command_lock:
             t = max(t, self._last_command_t)  # robot time of commands never runs backwards
             self._last_command_t = t
-            qdot = self._command_at(t)
+            qdot, plan = self._command_at(t)
             if not np.all(np.isfinite(qdot)):
                 self.fault("non-finite command from the plan")
-                qdot = self._command_at(t)
+                qdot, plan = self._command_at(t)
                 qdot = qdot if np.all(np.isfinite(qdot)) else np.zeros(NQ)
             qdot = self.robot.limits.clip_velocity(qdot)
             self.last_qdot = qdot
             self.commanded = True
             self.backend.command(self._to_odometry(qdot), t)
+            if self.stamps is not None:
+                self.stamps.command(t, qdot, plan)
         return qdot
 
-    def _command_at(self, t: float) -> np.ndarray:
+    def _command_at(self, t: float) -> tuple[np.ndarray, Plan | None]:
+        """The velocity of the active plan at t (zero without one), and that plan."""
         with self.lock:
             self._activate_due(t)
             plan = self.plan if self.moving else None
@@ -713,7 +736,7 @@ class ClosedLoop:
             self.fault(f"control is late: no control step for {age:.1f} s")
             with self.lock:
                 plan = self.plan
-        return plan.velocity_at(t) if plan is not None else np.zeros(NQ)
+        return (plan.velocity_at(t) if plan is not None else np.zeros(NQ)), plan
 
     def measure(self, qdot: np.ndarray) -> None:
         """One row of the run log (at the control rate), with the robot–box distance in simulation."""

@@ -237,6 +237,9 @@ class LiveLoops:
                     self.physics.stats.beat = time.monotonic()
         if self.loop.take_physics_step(PHYSICS_STEP_S):
             backend.step(PHYSICS_STEP_S)
+            stamps, world = self.loop.stamps, self.loop.world
+            if stamps is not None and world is not None:
+                stamps.physics_step(world.time)
 
     def _io_tick(self) -> None:
         dt_robot = self._io_period() * self._speed()

@@ -29,7 +29,8 @@ import multiprocessing
 import os
 import signal
 import threading
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from typing import Any
 
@@ -78,8 +79,8 @@ def _serve(conn: Connection, niceness: int) -> None:
             elif op == "integrate":
                 world_map.integrate(arg)
                 centre = np.asarray(arg.state.q[:2], dtype=float)
-                value = (world_map.snapshot(), world_map.occupied_points(), dict(world_map.timings_ms),
-                         world_map.local_edf(centre), centre)
+                edf = world_map.local_edf(centre)  # first: the timings handed back then include its own ("edf")
+                value = (world_map.snapshot(), world_map.occupied_points(), dict(world_map.timings_ms), edf, centre)
             elif op == "local_edf":
                 value = world_map.local_edf(arg)
             elif op == "close":
@@ -101,6 +102,8 @@ class _Latest:
     timings_ms: dict[str, float]
     edf: LocalEDF | None = None
     edf_centre: np.ndarray | None = None
+    wall: float = field(default_factory=time.perf_counter)
+    """When it was handed back (`time.perf_counter`, s): whoever reads it reads it after this."""
 
 
 class MapProcess:
@@ -194,6 +197,13 @@ class MapProcess:
     def timings_ms(self) -> dict[str, float]:
         local, latest = self._local, self._latest
         return dict(local.timings_ms) if local is not None else (latest.timings_ms if latest else {})
+
+    @property
+    def latest_edf(self) -> tuple[LocalEDF, float] | None:
+        """The EDF the worker built after its latest integration and the wall time (`time.perf_counter`) it was
+        handed back (None before the first)."""
+        latest = self._latest
+        return (latest.edf, latest.wall) if latest is not None and latest.edf is not None else None
 
     def integrate(self, obs: Observation) -> None:
         with self._pipe:

@@ -148,6 +148,8 @@ class HTMPC:
         self.trust_scale = 1.0
         """Adapted by the ratio of actual to predicted task-cost decrease (a trust-region SQP)."""
         self._previous: _Iterate | None = None
+        self._carry = 0
+        """SQP iterations of the latest task switch still to spend on the following steps (`_iterations`)."""
         self.last_step: StepResult | None = None
         self._last_plan: Plan | None = None
         """The plan handed out last: a fault brakes along it (safety.brake_along)."""
@@ -159,6 +161,7 @@ class HTMPC:
     def reset(self) -> None:
         """Forget the warm start (e.g. after a reset of the world)."""
         self._previous = None
+        self._carry = 0
         self.last_step = None
         self.trust_scale = 1.0
         self._last_plan = None
@@ -327,8 +330,8 @@ class HTMPC:
         x0 = np.concatenate([state.q, self.robot.limits.clip_velocity(state.v)])
         self.trust_scale = min(1.0, 2.0 * self.trust_scale)
         it = self.warm_start(state)
-        iters = p.sqp_iters_on_switch if (refs.switched or self._previous is None) else p.sqp_iters
-        damping = p.sqp_damping_on_switch if iters > 1 else p.sqp_damping
+        iters, carried = self._iterations(refs)
+        damping = p.sqp_damping_on_switch if iters > 1 or carried else p.sqp_damping
         step, level_ms = None, np.zeros(len(order) if p.hierarchy == "lexicographic" else 1)
         sqp_iterations = qp_iterations = 0
         hpipm_ms = 0.0
@@ -345,6 +348,7 @@ class HTMPC:
                 converged = float(np.max(np.abs(step.q - it.q))) < p.sqp_step_tol
                 it = _Iterate(state.t, step.q, step.v, step.a)
                 if converged:
+                    self._carry = 0
                     break
         except Exception as err:  # any fault inside the solve brakes the robot; a dead control loop does not
             log.exception("HTMPC step raised")
@@ -371,6 +375,21 @@ class HTMPC:
         self.last_step = step
         self._last_plan = plan
         return plan
+
+    def _iterations(self, refs: References) -> tuple[int, bool]:
+        """SQP iterations for this step, and whether they are carried over from a task switch. A switch (or no warm
+        start) gets `sqp_iters_on_switch` now and `sqp_switch_carry` more, spread over the following steps at
+        most `sqp_iters_on_switch` a step, until spent or the plan stops moving (`sqp_step_tol`): the task's first
+        steps stay within a control period while the plan converges as far as before."""
+        p = self.params
+        if refs.switched or self._previous is None:
+            self._carry = p.sqp_switch_carry
+            return p.sqp_iters_on_switch, False
+        if self._carry <= 0:
+            return p.sqp_iters, False
+        iters = min(self._carry, p.sqp_iters_on_switch)
+        self._carry -= iters
+        return max(iters, p.sqp_iters), True
 
     def _true_cost(self, q: np.ndarray, kin: HorizonKinematics, order: list[str], refs: References) -> float:
         """Σ over tasks and nodes 1..N of ½‖e‖²_W with the exact (nonlinear) errors."""

@@ -1,0 +1,59 @@
+"""bench/reaction.py on a few live events: every reaction counted is one to the box (checked again here from the
+stamps: the first command slowed by the drop came from a plan solved after the placement on an EDF holding the box,
+the box constraining when it appeared), and its parts are stages that happened in order and add up to the whole.
+No timing thresholds: the benchmark measures speed."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bench.reaction import measure_reactions
+from bench.reaction_chain import DROP_MPS, PARTS, Placement, Reaction
+from core.params import HTMPCParams, MappingParams
+
+EVENTS = 3
+
+
+@pytest.fixture(scope="module")
+def run():
+    return measure_reactions(EVENTS, max_wall_s=120.0, keep_s=300.0)
+
+
+def _reacting(run, placement: Placement):
+    towards = np.asarray(placement.towards)
+    for command in run.stamps.commands:
+        if command.wall > placement.wall and np.dot(command.base_v, towards) <= placement.v_before_mps - DROP_MPS:
+            return command
+    raise AssertionError("no command slowed")
+
+
+def test_every_reaction_counted_is_one_to_the_box(run) -> None:
+    assert len(run.events) == EVENTS
+    gamma, voxel = HTMPCParams().gamma, MappingParams().edf_voxel_m
+    for placement, reaction in run.events:
+        assert placement.h_m < placement.v_before_mps / gamma  # the constraint had to act
+        command = _reacting(run, placement)
+        assert reaction.total_ms == pytest.approx((command.wall - placement.wall) * 1e3)
+        step = next(s for s in run.stamps.controls if s.plan is command.plan)
+        assert step.wall_wake > placement.wall  # solved after the box appeared …
+        assert step.edf is not None and float(step.edf.distance(placement.face)) <= voxel  # … with the box in it
+        seen = [f for i in run.stamps.integrations if placement.wall < i.wall_end <= step.wall_edf for f in i.frames
+                if f.exposure_t > placement.t]
+        assert seen  # a frame taken after the placement reached the map before that step
+
+
+def test_the_parts_happened_in_order_and_add_up_to_the_whole(run) -> None:
+    for _, r in run.events:
+        assert isinstance(r, Reaction)
+        assert list(r.parts_ms) == list(PARTS)
+        assert all(v >= 0.0 for v in r.parts_ms.values()), r.parts_ms
+        assert sum(r.parts_ms.values()) == pytest.approx(r.total_ms, abs=1e-6)
+        assert 0.0 <= r.processing_ms <= r.total_ms
+        assert r.sim_ms > 0.0
+
+
+def test_the_loops_health_is_read_from_the_same_run(run) -> None:
+    health = run.health
+    assert health["control_steps"] > 0 and 0.0 <= health["control_late_pct"] <= 100.0
+    assert health["hand_frames_integrated_hz"] > 0.0 and health["base_frames_integrated_hz"] > 0.0
