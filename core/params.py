@@ -186,13 +186,13 @@ class HTMPCParams:
     Q_u: float = 1e-2
     sqp_iters: int = 1
     """Real-time iteration: one QP per level per control step."""
-    sqp_iters_on_switch: int = 2
+    sqp_iters_on_switch: int = 5
     """More Gauss-Newton iterations right after a subtask switch (the warm start is far off then)."""
-    sqp_switch_carry: int = 3
+    sqp_switch_carry: int = 0
     """Further iterations of a switch, spent on the following steps, at most `sqp_iters_on_switch` a step (until
-    the plan stops moving): the 5 iterations a switch had in its first step (22 ms, over a 25 Hz control period
-    under load) now take 2 + 2 + 1 over three steps, none over 2 iterations (docs/decisions.md, "A task's first
-    step spread over three")."""
+    the plan stops moving). Measured with `sqp_iters_on_switch` 2 and this 3 (2 + 2 + 1 over three steps): the
+    first step's longest 18 ms against 57 ms at load 5, the same tasks done (docs/decisions.md, "A task's first
+    step spread over three"); off by default until E1–E4 are re-run with it (every lockstep run changes)."""
     sqp_step_tol: float = 1e-3
     """Those iterations stop early once no joint of the plan moved more than this (m or rad) in one."""
     sqp_damping: float = 1e-3
