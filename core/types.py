@@ -369,19 +369,21 @@ class RobotBackend(Protocol):
 
 class SteppableBackend(RobotBackend, Protocol):
     """A backend whose time the runtime advances (`BackendAbilities.steps_in_lockstep`). Live, one thread
-    steps it, and owns what it renders with: `prepare_cameras()` before the first step, `close()` when the
-    thread ends (either may do nothing)."""
+    steps it: `prepare_cameras()` before its first step makes what the cameras render with, unless it exists
+    (a Reset's new thread renders with what the previous one made); `close()` frees it once no thread steps
+    any more (either may do nothing)."""
 
     def step(self, dt: float) -> None:
         """Advance the robot's time by dt (s)."""
         ...
 
     def prepare_cameras(self) -> None:
-        """Make what the cameras render with, from the thread that will step (live, before the first step)."""
+        """Make what the cameras render with unless it exists, from the thread that will step (live, before
+        its first step)."""
         ...
 
     def close(self) -> None:
-        """Free it, from that thread, when it ends."""
+        """Free it, once no thread steps any more (the runtime's shutdown)."""
         ...
 
 

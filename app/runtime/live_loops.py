@@ -1,8 +1,8 @@
 """The live threads of a `ClosedLoop`: they only schedule its stages, on wall-clock time.
 
 - physics (a backend stepped in lockstep, `BackendAbilities.steps_in_lockstep`: the simulation): `backend.step`
-  of 10 ms of sim time, paced by `speed`, frozen while paused; it first makes the cameras' renderers, and the
-  other loops start after that (`CAMERA_SETUP_WAIT_S`);
+  of 10 ms of sim time, paced by `speed`, frozen while paused; it first makes the cameras' renderers (the
+  first time: a Reset's new thread reuses them), and the other loops start after that (`CAMERA_SETUP_WAIT_S`);
 - io: observe + command at the command rate (100 Hz), deadline-paced so the rate holds on average;
 - mapping: integrate depth frames as they arrive (only the newest of each camera when behind), the object
   and voxel maps in a process of their own (`app/runtime/map_process.py`: mapping held the GIL these loops need);
@@ -74,12 +74,11 @@ class SupervisedLoop:
     goes to `on_fault` and the loop goes on; anything that ends the thread goes to `on_fault` too."""
 
     def __init__(self, name: str, tick: Callable[[], object], on_fault: Callable[[str], None],
-                 period_s: Callable[[], float] | None = None, on_exit: Callable[[], None] | None = None,
-                 niceness: int | None = None) -> None:
+                 period_s: Callable[[], float] | None = None, niceness: int | None = None) -> None:
         self.name, self.tick, self.on_fault = name, tick, on_fault
         self.niceness = niceness
         """The thread's niceness (`app/thread_priority.py`; None: the creator's)."""
-        self.period_s, self.on_exit = period_s, on_exit
+        self.period_s = period_s
         self.stall_after_s = STALL_AFTER_S.get(name, 5.0)
         self.stats = LoopStats()
         self.stopping = threading.Event()
@@ -116,9 +115,6 @@ class SupervisedLoop:
                     next_tick = self._pace(next_tick, self.period_s())
         except BaseException as err:  # noqa: BLE001  (SystemExit and the like end the thread: say so)
             self.on_fault(f"{self.name} loop ended: {type(err).__name__}: {err}")
-        finally:
-            if self.on_exit is not None:
-                self.on_exit()
 
     def _iterate(self) -> None:
         try:
@@ -167,8 +163,9 @@ class LiveLoops:
         self.physics: SupervisedLoop | None = None
         backend = loop.backend
         if steps_in_lockstep(backend):
-            self.physics = SupervisedLoop("physics", self._physics_tick, fault, self._physics_period,
-                                          on_exit=backend.close)  # GL contexts belong to that thread
+            # the cameras' renderers outlive this thread: the next Reset's physics thread renders with them
+            # (made anew every Reset, they cost ~0.1 MB of native memory each time: core/sim/gl_release.py)
+            self.physics = SupervisedLoop("physics", self._physics_tick, fault, self._physics_period)
             self.loops.insert(0, self.physics)
         self.watchdog = SupervisedLoop("watchdog", self._watch, fault, lambda: WATCHDOG_PERIOD_S)
 

@@ -411,16 +411,21 @@ class Runtime:
         self._live = LiveLoops(self._loop, self.publish, self.config.publish_hz)
         self._live.start(map_process)
 
-    def _stop_live(self) -> None:
+    def _stop_live(self) -> list[str]:
+        """Stop the live threads; the names of those left behind."""
         live, self._live = self._live, None
         if live is None:
-            return
+            return []
         stuck = live.stop()
         if stuck:
             self.notify(f"loops that did not stop in time (left behind): {', '.join(stuck)}")
+        return stuck
 
     def shutdown(self) -> None:
-        """Stop the live threads and the robot; an isolated map comes back into this process."""
-        self._stop_live()
+        """Stop the live threads and the robot; an isolated map comes back into this process; the cameras'
+        renderers, which every live start reuses, are freed (unless a physics thread left behind may render)."""
+        stuck = self._stop_live()
         self._loop.restore_map()
         self.backend.command(np.zeros(NQ), self.time)
+        if steps_in_lockstep(self.backend) and "physics" not in stuck:
+            self.backend.close()

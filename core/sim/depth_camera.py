@@ -17,6 +17,7 @@ import numpy as np
 
 from core.params import CameraParams, SensorParams
 from core.sim.depth_artefacts import sense
+from core.sim.gl_release import release_gl_context
 from core.sim.world import SimWorld
 from core.types import DepthFrame
 
@@ -28,7 +29,9 @@ def intrinsics(params: CameraParams) -> np.ndarray:
 
 
 class DepthCamera:
-    """One camera of the world (`hand` or `base`); renders from the thread that created nothing else GL."""
+    """One camera of the world (`hand` or `base`). Its renderers (a GL context each) are made once and kept
+    until the model changes or `close`; no context stays current after a render (`gl_release.py`), so any
+    thread may render next, one at a time (under the world's lock): a Reset's new physics thread reuses them."""
 
     def __init__(self, world: SimWorld, name: str, params: CameraParams, seed: int = 0,
                  sensor: SensorParams | None = None) -> None:
@@ -58,15 +61,18 @@ class DepthCamera:
     def capture(self) -> tuple[float, np.ndarray]:
         """(sim time, depth image in m as the camera reports it: 0 where nothing returned)."""
         with self.world.lock:
-            renderer = self._ensure()
-            renderer.update_scene(self.world.data, camera=f"camera_{self.name}", scene_option=self._options)
-            depth = renderer.render().astype(np.float64)
-            dark = self.world.dark_geoms()
-            no_return = None
-            if len(dark):
-                seg = self._segmentation()
-                no_return = (seg[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM)) & np.isin(seg[..., 0], dark)
-            t = self.world.time
+            try:
+                renderer = self._ensure()
+                renderer.update_scene(self.world.data, camera=f"camera_{self.name}", scene_option=self._options)
+                depth = renderer.render().astype(np.float64)
+                dark = self.world.dark_geoms()
+                no_return = None
+                if len(dark):
+                    seg = self._segmentation()
+                    no_return = (seg[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM)) & np.isin(seg[..., 0], dark)
+                t = self.world.time
+            finally:
+                release_gl_context()
         return t, sense(depth, self.sensor, self.params.near_m, self.params.range_m, self._rng, no_return)
 
     def frame(self, t: float, depth: np.ndarray, T_world_camera: np.ndarray) -> DepthFrame:
@@ -97,7 +103,10 @@ class DepthCamera:
     def render_box_ids(self) -> np.ndarray:
         """Ground-truth segmentation (tests only): per pixel the box id, '' for anything else."""
         with self.world.lock:
-            seg = self._segmentation()
+            try:
+                seg = self._segmentation()
+            finally:
+                release_gl_context()
             geom_types = seg[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM)
             lookup = {int(g): self.world.box_id_of_geom(int(g)) or "" for g in np.unique(seg[..., 0][geom_types])}
         out = np.full(seg.shape[:2], "", dtype=object)
@@ -106,16 +115,19 @@ class DepthCamera:
         return out
 
     def prepare(self) -> None:
-        """Make the renderers now (and the segmentation one if the scene has dark boxes), from the thread
-        that will render: making a GL context holds the GIL for about 0.3 s, which other threads, the
-        control loop among them, would otherwise wait out at the first render."""
+        """Make the renderers now unless they exist (and the segmentation one if the scene has dark boxes),
+        from the thread that will render: making a GL context holds the GIL for about 0.3 s, which other
+        threads, the control loop among them, would otherwise wait out at the first render."""
         with self.world.lock:
-            self._ensure()
-            if len(self.world.dark_geoms()):
-                self._ensure_segmentation()
+            try:
+                self._ensure()
+                if len(self.world.dark_geoms()):
+                    self._ensure_segmentation()
+            finally:
+                release_gl_context()
 
     def close(self) -> None:
-        """Free the GL resources."""
+        """Free the GL resources (from any thread that renders no more; the next render makes them anew)."""
         for r in (self._renderer, self._seg_renderer):
             if r is not None:
                 r.close()

@@ -113,7 +113,8 @@ class SimRobot:
             self._stamp_due()
 
     def prepare_cameras(self) -> None:
-        """Make every camera's renderers now, from the thread that steps and renders (`DepthCamera.prepare`)."""
+        """Make every camera's renderers now unless they exist, from the thread that steps and renders
+        (`DepthCamera.prepare`)."""
         for cam in self.cameras.values():
             cam.prepare()
 
@@ -179,6 +180,6 @@ class SimRobot:
         return Observation(state=state, frames=frames, odometry=self.odometry(state))
 
     def close(self) -> None:
-        """Free the cameras' GL resources (call from the thread that rendered)."""
+        """Free the cameras' GL resources, once no thread renders any more (the next render makes them anew)."""
         for cam in self.cameras.values():
             cam.close()

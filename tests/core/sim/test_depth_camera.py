@@ -109,3 +109,34 @@ def test_noise_never_brings_far_pixels_into_range(robot):
     clean = DepthCamera(world, "base", CameraParams()).render().depth
     noisy = DepthCamera(world, "base", CameraParams(), seed=1, sensor=_noise_only(0.05)).render().depth
     assert np.all(noisy[clean == 0] == 0)  # sky and far floor stay "no return"
+
+
+def test_a_camera_renders_from_any_thread_with_the_renderers_it_made(world):
+    """A render leaves no GL context current: renderers made on a thread that lives on render on another (EGL
+    refused that: EGL_BAD_ACCESS), the same renderer objects, so a Reset's new physics thread makes none anew
+    (each new one cost native memory that was never handed back, issue 32)."""
+    import threading
+
+    world.load_scene(Scene((Box("front", (2.0, 0.0, 0.3)),)))
+    world.set_robot(READY_Q)
+    cam = DepthCamera(world, "base", CameraParams())
+    made, done = threading.Event(), threading.Event()
+    depths: list[np.ndarray] = []
+
+    def first_thread() -> None:
+        depths.append(cam.render().depth)
+        made.set()
+        done.wait(30)  # alive while the other thread renders
+
+    thread = threading.Thread(target=first_thread)
+    thread.start()
+    try:
+        assert made.wait(60)
+        renderer = cam._renderer
+        depths.append(cam.render().depth)
+        assert cam._renderer is renderer
+    finally:
+        done.set()
+        thread.join()
+    np.testing.assert_array_equal(depths[0], depths[1])
+    cam.close()
