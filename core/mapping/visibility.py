@@ -155,11 +155,15 @@ class FrameView:
         labels[idx] = lab
         return labels
 
+    def ray_dz(self, v: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """World z change per metre of depth along the rays of pixels (v, u)."""
+        K, R = self.K, self.R_cw
+        return R[0, 2] * (u - K[0, 2]) / K[0, 0] + R[1, 2] * (v - K[1, 2]) / K[1, 1] + R[2, 2]
+
     def beyond_floor(self, d: np.ndarray, v: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Depths (m) at pixels (v, u) with no return and floor returns made infinite (a floor return is free
         space seen up to the floor: beyond whatever the map has above it)."""
-        K, R = self.K, self.R_cw
-        ray_dz = R[0, 2] * (u - K[0, 2]) / K[0, 0] + R[1, 2] * (v - K[1, 2]) / K[1, 1] + R[2, 2]  # world z, unit depth
+        ray_dz = self.ray_dz(v, u)
         height = self.camera_position[2] + d * ray_dz
         floor = height <= floor_threshold(d, ray_dz, self.floor_height_m, self.noise_coeff_m)
         return np.where((d > 0.0) & ~floor, d, np.inf)
@@ -169,8 +173,7 @@ class FrameView:
         then every silent pixel is unseen, as before the floor was known.)"""
         if not np.isfinite(self.floor_height_m):
             return np.ones(len(v), bool)
-        K, R = self.K, self.R_cw
-        ray_dz = R[0, 2] * (u - K[0, 2]) / K[0, 0] + R[1, 2] * (v - K[1, 2]) / K[1, 1] + R[2, 2]
+        ray_dz = self.ray_dz(v, u)
         drop = self.floor_height_m - self.camera_position[2]
         with np.errstate(divide="ignore", invalid="ignore"):
             depth = np.where(ray_dz < 0.0, drop / ray_dz, np.inf)
