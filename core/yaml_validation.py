@@ -27,7 +27,7 @@ class FileFormatError(StudioError, ValueError):
     def __init__(self, source: str, problems: list[tuple[str, int | None, str]]) -> None:
         self.source = source
         self.problems = problems
-        lines = [f"{source}: {len(problems)} problem(s)"]
+        lines = [f"{source}: {len(problems)} problem{'' if len(problems) == 1 else 's'}"]
         for field, line, msg in problems:
             where = f"line {line}" if line is not None else "line ?"
             lines.append(f"  {where}: {field or '<root>'}: {msg}")

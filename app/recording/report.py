@@ -58,7 +58,7 @@ def write_report(out_dir: Path, log: RunLog, boxes: tuple[Box, ...], meta: dict,
     errs = log.task_errors
     for level in range(max((len(e) for e in errs), default=0)):
         axes[0].plot(t, [e[level] if len(e) > level else np.nan for e in errs], label=f"level {level + 1}")
-    axes[0].set_ylabel("task error")
+    axes[0].set_ylabel("task error ‖e‖ (m, rad)")
     axes[0].legend(loc="upper right")
     axes[1].plot(t, log.min_distance_m, color="tab:red")
     axes[1].axhline(0.0, color="k", lw=0.5)

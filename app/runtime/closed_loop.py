@@ -81,7 +81,7 @@ from core.types import (
 )
 from tasks.anchors import MapObjects
 from tasks.schema import TaskSequence
-from tasks.sequencer import Outcome, Sequencer, SubtaskProgress
+from tasks.sequencer import Outcome, Sequencer, SubtaskProgress, plural
 
 if TYPE_CHECKING:
     from app.runtime.config import RuntimeConfig
@@ -284,7 +284,7 @@ class ClosedLoop:
                 self._pending_plans.clear()
                 self._halted_t = None
                 self.run_state = RunState.RUNNING
-        log.info("sequence %r started (%d subtasks)", sequence.name, len(sequence.subtasks))
+        log.info("sequence %r started (%s)", sequence.name, plural(len(sequence.subtasks), "subtask"))
 
     def _resumable(self) -> bool:
         """Whether Start resumes: the run was interrupted (paused, stopped, e-stopped) with a subtask begun

@@ -39,3 +39,11 @@ def test_ordinary_nesting_still_reaches_the_schema() -> None:
     with pytest.raises(FileFormatError, match="Extra inputs") as err:
         parse_sequence(f"name: x\nsubtasks: []\nextra: {_lists(MAX_DEPTH - 1)}\n")
     assert err.value.problems[0][:2] == ("extra", 3)
+
+
+def test_the_count_of_problems_reads_as_english() -> None:
+    """'1 problem', '2 problems' (it read '1 problem(s)')."""
+    one = FileFormatError("f.yaml", [("a", 1, "bad")])
+    two = FileFormatError("f.yaml", [("a", 1, "bad"), ("b", 2, "bad")])
+    assert str(one).splitlines()[0] == "f.yaml: 1 problem"
+    assert str(two).splitlines()[0] == "f.yaml: 2 problems"
