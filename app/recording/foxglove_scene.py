@@ -20,7 +20,7 @@ late subscriber never sees stale boxes.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from functools import cache
 
 import foxglove
@@ -54,6 +54,7 @@ from foxglove.messages import (
 )
 from scipy.spatial.transform import Rotation
 
+from app.object_label import object_label, operator_names
 from app.runtime.snapshot import Snapshot
 from app.runtime.target_marks import TargetMark
 from app.ui.colors import consistency_rgb
@@ -213,9 +214,11 @@ def boxes(t_s: float, scene_boxes: Iterable[Box]) -> bytes:
 _REMOVED_RGB = (140, 140, 140)
 
 
-def mapped_objects(t_s: float, object_map: ObjectMapSnapshot, theta_stat: float) -> bytes:
-    """Each mapped object as a box coloured by its consistency E[v] with a label `id E[v]`."""
-    stamp = timestamp(t_s)
+def mapped_objects(t_s: float, object_map: ObjectMapSnapshot, theta_stat: float,
+                   names: Mapping[int, str] | None = None) -> bytes:
+    """Each mapped object as a box coloured by its consistency E[v] with its label '#4 E[v]=0.93' ('#4 shelf …'
+    with the operator's `names` by map id), as the studio labels it."""
+    stamp, names = timestamp(t_s), names or {}
     entities = []
     poses = np.array([np.asarray(o.pose, float) for o in object_map.objects]).reshape(-1, 4, 4)
     quaternions = Rotation.from_matrix(poses[:, :3, :3]).as_quat() if len(poses) else poses
@@ -229,7 +232,7 @@ def mapped_objects(t_s: float, object_map: ObjectMapSnapshot, theta_stat: float)
             metadata=[KeyValuePair(key="E[v]", value=f"{e_v:.3f}"), KeyValuePair(key="status", value=o.status.value)],
             cubes=[CubePrimitive(pose=_pose(pose[:3, 3], quaternion), size=_vec(o.extent), color=_color(rgb, 0.5))],
             texts=[TextPrimitive(pose=_pose(top), billboard=True, font_size=14.0, scale_invariant=True,
-                                 color=_color(rgb), text=f"{o.id} E[v]={e_v:.2f}")]))
+                                 color=_color(rgb), text=f"{object_label(o.id, names.get(o.id))} E[v]={e_v:.2f}")]))
     return _scene(entities)
 
 
@@ -315,7 +318,7 @@ def scene_messages(robot: RobotModel, snap: Snapshot, with_points: bool, with_mo
         out.append(("/robot/model", robot_model(robot, t)))
     out.append(("/scene/boxes", boxes(t, snap.boxes)))
     if snap.object_map is not None:
-        out.append(("/map/objects", mapped_objects(t, snap.object_map, theta_stat)))
+        out.append(("/map/objects", mapped_objects(t, snap.object_map, theta_stat, operator_names(snap.anchors))))
     out.append(("/plan/paths", plan_paths(t, snap.plan, snap.base_path, getattr(snap, "targets", ()),
                                           snap.active_index)))
     if with_points and snap.map_points is not None:

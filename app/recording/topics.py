@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from app.object_label import object_label
+from app.object_label import object_label, operator_names
 from app.runtime.problems import ProblemCount, ProblemKind
 from app.runtime.snapshot import EDFSlice, RunState, Snapshot
 from core.scene import Box
@@ -173,11 +173,11 @@ def snapshot_messages(snap: Snapshot) -> list[tuple[str, dict]]:
                               "status": p.status.value, "message": p.message, "reason": p.reason.value,
                               "min_h": _num(p.min_h)}))
     if snap.object_map is not None:
-        m = snap.object_map
+        m, names = snap.object_map, operator_names(snap.anchors)
         out.append(("/map/posterior", {"t": m.t, "removed_ids": list(m.removed_ids), "objects": [
             {"id": o.id, "pose": _list(o.pose), "extent": _list(o.extent), "status": o.status.value,
              "consistency": _num(o.consistency), "posterior": _record(o.posterior), "observations": o.observations,
-             "label": object_label(o.id), "last_seen_t": _num(o.last_seen_t)}
+             "label": object_label(o.id, names.get(o.id)), "last_seen_t": _num(o.last_seen_t)}
             for o in m.objects]}))
     if snap.edf_slice is not None:
         e = snap.edf_slice

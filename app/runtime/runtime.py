@@ -29,6 +29,7 @@ import numpy as np
 
 import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported)
 from app.map_kind import MapKind
+from app.object_label import shown_id
 from app.object_names import find_object
 from app.runtime.closed_loop import MOVING_STATES, ClosedLoop
 from app.runtime.config import RuntimeConfig
@@ -318,7 +319,7 @@ class Runtime:
         with loop.using_map() as world_map:
             obj = find_object(world_map, self.world, object_id)
         if obj is None:
-            raise ValueError(f"no object {object_id!r} in the map")
+            raise ValueError(f"no object {shown_id(object_id)} in the map")
         seq = self.sequence
         named = NamedObject(position=(float(obj.position[0]), float(obj.position[1]), float(obj.position[2])),
                             yaw_deg=math.degrees(obj.yaw))

@@ -1,7 +1,8 @@
 """Names and anchored targets in the studio: name a mapped object (click it in the 3D view, then *Name…*),
-author "Reach its top" / "Approach its front" on it, and see each binding: the name over its object, the
+author "Reach its top" / "Approach its front" on it, and see each binding: the name in its object's label
+('#4 box_3 E[v]=…', drawn by the map view; a scene box of the ground-truth map gets a label of its own), the
 anchored goal's frame sitting on the object and moving with it, a line joining the two, and the list of
-anchored subtasks ("2. pick: top of box_3 → object_4").
+anchored subtasks ("2. pick: top of box_3 → #4"). Objects are listed by the one name they have everywhere ('#4').
 
 It reads snapshots only (`Snapshot.anchors`, `object_map`, `progress`) and changes the run through the
 runtime's public API (`name_object`, `set_sequence`)."""
@@ -13,6 +14,7 @@ import logging
 import numpy as np
 import viser
 
+from app.object_label import MAP_ID_PREFIX, map_id, shown_id
 from app.runtime.snapshot import Snapshot
 from app.target_check import check_targets
 from app.ui.notify import notify_all
@@ -52,7 +54,7 @@ def binding_lines(snap: Snapshot) -> list[str]:
         if name is None:
             continue
         obj = None if anchors is None else anchors.named(name)
-        where = f" → {obj.id}" if obj is not None else ""
+        where = f" → {shown_id(obj.id)}" if obj is not None else ""
         if anchors is not None and obj is None:
             where = f" ({anchors.why_missing(name)})"
         lines.append(f"{p.index + 1}. {p.name}: {p.anchor_label}{where}")
@@ -79,18 +81,29 @@ class AnchorPanel:
         self._drawn: list = []
         self._drawn_key: tuple | None = None
         self._objects: dict[str, tuple[np.ndarray, np.ndarray, float]] = {}
+        self._ids: dict[str, str] = {}
+        """Dropdown entry ('#4') → object id (`object_4`)."""
 
     # --- actions ----------------------------------------------------------------------------------------
 
     def select(self, object_id: str) -> None:
-        """A click on a mapped object in the 3D view."""
-        if object_id not in self.object.options:
-            self.object.options = (*self.object.options, object_id)
-        self.object.value = object_id
+        """A click on a mapped object in the 3D view (`object_id`: `object_4`, listed as '#4')."""
+        shown = shown_id(object_id)
+        self._ids[shown] = object_id
+        if shown not in self.object.options:
+            self.object.options = (*self.object.options, shown)
+        self.object.value = shown
+
+    def selected_id(self) -> str:
+        """The id of the object the dropdown shows ('#4' → `object_4`; a scene box id as it is)."""
+        shown = self.object.value
+        return self._ids.get(shown, f"{MAP_ID_PREFIX}{shown[1:]}" if shown.startswith("#") else shown)
 
     def _offer(self) -> None:
-        """The dropdown lists the objects mapped now (and keeps the selection while it is mapped)."""
-        options = (NONE, *sorted(self._objects))
+        """The dropdown lists the objects mapped now by map id (and keeps the selection while it is mapped)."""
+        self._ids = {shown_id(i): i for i in self._objects}
+        ordered = sorted(self._objects, key=lambda i: (map_id(i) is None, map_id(i) or 0, i))
+        options = (NONE, *(shown_id(i) for i in ordered))
         if tuple(self.object.options) != options:
             value = self.object.value
             self.object.options = options
@@ -98,13 +111,13 @@ class AnchorPanel:
 
     def name_selected(self) -> str:
         """Name the selected object (`Runtime.name_object`); returns the name."""
-        object_id, name = self.object.value, self.name.value.strip()
+        object_id, name = self.selected_id(), self.name.value.strip()
         self.runtime.name_object(name, object_id)
         return name
 
     def add_anchored(self, what: str, template: Anchor) -> None:
         """Append a subtask anchored on the selected object (named first if it has no name yet)."""
-        name = self._name_of(self.object.value) or self.name_selected()
+        name = self._name_of(self.selected_id()) or self.name_selected()
         anchor = template.model_copy(update={"object": name})
         if template.face == "top":
             sub = EESubtask(name=f"{what} {describe_anchor(anchor)}", target=EEPose(anchor=anchor), dwell_s=1.0,
@@ -154,9 +167,10 @@ class AnchorPanel:
             self._picks[oid] = (key, handle)
 
     def _draw_bindings(self, snap: Snapshot) -> None:
-        """Names over their objects, the anchored goals' frames on them, a line from each goal to its object."""
+        """Names over scene boxes (a mapped object's name is in its map label), the anchored goals' frames on
+        them, a line from each goal to its object."""
         anchors = snap.anchors
-        named = [] if anchors is None else [o for o in anchors.objects if o.name]
+        named = [] if anchors is None else [o for o in anchors.objects if o.name and map_id(o.id) is None]
         goals = []
         for p in snap.progress:
             obj = None if anchors is None or p.anchor_object is None else anchors.named(p.anchor_object)

@@ -10,7 +10,7 @@ import numpy as np
 import trimesh
 import viser
 
-from app.object_label import object_label
+from app.object_label import object_label, operator_names
 from app.runtime.snapshot import Snapshot
 from app.ui.colors import consistency_rgb, distance_rgb
 from app.ui.robot_view import wxyz
@@ -76,7 +76,7 @@ class MapView:
         self._objects: dict[int, tuple[tuple, viser.BoxHandle | viser.PointCloudHandle, viser.LabelHandle]] = {}
         self._last_seen: dict[int, MappedObject] = {}
         self.names: dict[int, str] = {}
-        """Operator-given names by map id (none yet: naming mapped objects is to come), shown after '#id'."""
+        """Operator-given names by map id (the Names tab, a sequence's `objects`), shown after '#id'."""
         self._layers: dict[str, viser.SceneNodeHandle] = {}
         sphere = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
         self._sphere_mesh = (np.asarray(sphere.vertices, np.float32), np.asarray(sphere.faces, np.uint32))
@@ -133,6 +133,7 @@ class MapView:
 
     def _draw_objects(self, snap: Snapshot) -> None:
         seen = set()
+        self.names = operator_names(snap.anchors)
         if snap.object_map is None or not snap.object_map.objects and not snap.object_map.removed_ids:
             self._last_seen.clear()  # a new map (reset, another map kind)
         drawn = sorted(self._objects_to_draw(snap), key=lambda d: d[0].id)

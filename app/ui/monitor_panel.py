@@ -11,7 +11,7 @@ import numpy as np
 import viser
 import viser.uplot as uplot
 
-from app.object_label import object_label
+from app.object_label import object_label, operator_names
 from app.runtime.snapshot import RunState, Snapshot
 
 WINDOW = 300
@@ -95,6 +95,8 @@ class MonitorPanel:
         self.clearance: viser.GuiUplotHandle | None = None
         self.consistency: viser.GuiUplotHandle | None = None
         self._obj_ids: list[int] = []
+        self._names: dict[int, str] = {}
+        """The operator's names by map id ('#4 shelf' in the legend)."""
         self._legend: tuple[str, ...] = ()
         self._last_plot = 0.0
 
@@ -118,8 +120,9 @@ class MonitorPanel:
         self._legend = tuple(self.object_labels())
 
     def object_labels(self) -> list[str]:
-        """The E[v] plot's series names: each object's map label ('#4'), '—' for a series not used yet."""
-        return [object_label(i) for i in self._obj_ids] + ["—"] * (MAX_OBJECTS - len(self._obj_ids))
+        """The E[v] plot's series names: each object's map label ('#4', '#4 shelf' once named), '—' for a series
+        not used yet."""
+        return [object_label(i, self._names.get(i)) for i in self._obj_ids] + ["—"] * (MAX_OBJECTS - len(self._obj_ids))
 
     def load_history(self, snapshots: list[Snapshot]) -> None:
         """Start the plots over from these snapshots (a replay jumped in time); the next update draws them."""
@@ -155,6 +158,7 @@ class MonitorPanel:
         errs = list(plan.task_errors) if plan is not None else []
         objects = [o for o in (snap.object_map.objects if snap.object_map else ())][:MAX_OBJECTS]
         ev = {o.id: o.consistency for o in objects}
+        self._names.update(operator_names(snap.anchors))
         for o in objects:
             if o.id not in self._obj_ids and len(self._obj_ids) < MAX_OBJECTS:
                 self._obj_ids.append(o.id)
