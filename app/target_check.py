@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.object_label import object_label
+from app.object_label import object_label, shown_id
 from core.params import HTMPCParams, SequencerParams
 from core.types import ObjectMapSnapshot, ObjectStatus
 from tasks.anchors import MapObjects
@@ -95,7 +95,7 @@ def named_boxes(objects: MapObjects | None) -> dict[str, Obstacle]:
     """The named objects of a map view as boxes, by name (with their faces' yaw and extent)."""
     if objects is None:
         return {}
-    return {o.name: Obstacle(o.id, (float(o.position[0]), float(o.position[1]), float(o.position[2])),
+    return {o.name: Obstacle(shown_id(o.id), (float(o.position[0]), float(o.position[1]), float(o.position[2])),
                              (float(o.extent[0]), float(o.extent[1]), float(o.extent[2])), float(o.yaw))
             for o in objects.objects if o.name is not None}
 
@@ -116,7 +116,7 @@ def recheck_anchored(loop, sequence: TaskSequence, index: int, objects: MapObjec
     configuration)."""
     if objects is None or index >= len(sequence.subtasks):
         return []
-    obstacles = tuple(Obstacle(o.id, (float(o.position[0]), float(o.position[1]), float(o.position[2])),
+    obstacles = tuple(Obstacle(shown_id(o.id), (float(o.position[0]), float(o.position[1]), float(o.position[2])),
                                (float(o.extent[0]), float(o.extent[1]), float(o.extent[2])), float(o.yaw))
                       for o in objects.objects)
     findings = check_sequence(sequence, obstacles, envelope_of(loop), indices=[index], anchors=named_boxes(objects))

@@ -10,6 +10,7 @@ from app.object_label import map_id, operator_names, shown_id
 from app.recording.foxglove_scene import mapped_objects as foxglove_objects
 from app.recording.topics import snapshot_messages
 from app.runtime.snapshot import RunState, Snapshot
+from app.target_check import named_boxes
 from app.ui.anchor_panel import AnchorPanel, binding_lines
 from app.ui.map_view import MapView
 from app.ui.monitor_panel import MonitorPanel
@@ -40,6 +41,8 @@ def test_ids_read_as_the_map_names_them():
     assert map_id("object_12") == 12 and map_id("box_a") is None and map_id("object_x") is None
     assert shown_id("object_12") == "#12" and shown_id("box_a") == "box_a"
     assert operator_names(named_snapshot().anchors) == {4: "box_3"} and operator_names(None) == {}
+    # the boxes target checks and problems speak of (an anchored target rechecked after its object moved)
+    assert named_boxes(named_snapshot().anchors)["box_3"].id == "#4"
 
 
 def test_a_named_object_has_one_name_in_the_view_the_legend_the_names_tab_and_the_recordings(robot):
