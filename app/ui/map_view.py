@@ -13,6 +13,7 @@ import viser
 from app.object_label import object_label, operator_names
 from app.runtime.snapshot import Snapshot
 from app.ui.colors import consistency_rgb, distance_rgb
+from app.ui.label_layout import View, screen_stacked, stacked
 from app.ui.robot_view import wxyz
 from core.params import MappingParams
 from core.robot.model import RobotModel
@@ -20,10 +21,6 @@ from core.types import MappedObject, ObjectStatus
 
 LABEL_LIFT_M = 0.15
 """A label floats this far above its object's top."""
-LABEL_STACK_M = 0.22
-"""Labels whose anchors lie within `LABEL_NEAR_M` of each other are stacked this far apart in height (two
-objects on one table used to print their labels over each other)."""
-LABEL_NEAR_M = 0.8
 
 
 def age_text(seconds: float) -> str:
@@ -41,18 +38,6 @@ def label_text(obj: MappedObject, removed: bool, now_s: float, name: str | None 
     state = "removed" if removed else f"E[v]={obj.consistency:.2f}"
     return f"{object_label(obj.id, name)} {state} · {age_text(now_s - obj.last_seen_t)}"
 
-
-def stacked(anchors: list[np.ndarray]) -> list[np.ndarray]:
-    """Label positions that never overprint: each anchor raised by `LABEL_STACK_M` until no label placed before it
-    is within `LABEL_NEAR_M` in the plane and `LABEL_STACK_M` in height (placed in the anchors' order)."""
-    placed: list[np.ndarray] = []
-    for anchor in anchors:
-        p = np.asarray(anchor, float).copy()
-        while any(np.hypot(*(p[:2] - q[:2])) < LABEL_NEAR_M and abs(p[2] - q[2]) < LABEL_STACK_M - 1e-9
-                  for q in placed):
-            p[2] += LABEL_STACK_M
-        placed.append(p)
-    return placed
 
 @dataclass(frozen=True)
 class DrawnObject:
@@ -131,40 +116,54 @@ class MapView:
         out += [(self._last_seen[i], True) for i in sorted(removed - live) if i in self._last_seen]
         return out
 
+    def _view(self) -> View | None:
+        """The camera of the first browser on the page (labels are laid out for it), None without one."""
+        clients = self.server.get_clients()
+        return View.of(clients[min(clients)].camera) if clients else None
+
     def _draw_objects(self, snap: Snapshot) -> None:
         seen = set()
         self.names = operator_names(snap.anchors)
         if snap.object_map is None or not snap.object_map.objects and not snap.object_map.removed_ids:
             self._last_seen.clear()  # a new map (reset, another map kind)
         drawn = sorted(self._objects_to_draw(snap), key=lambda d: d[0].id)
+        texts = [label_text(obj, removed, snap.state.t, self.names.get(obj.id)) for obj, removed in drawn]
         anchors = stacked([o.pose[:3, 3] + [0, 0, o.extent[2] / 2 + LABEL_LIFT_M] for o, _ in drawn])
-        for (obj, removed), anchor in zip(drawn, anchors, strict=True):
-            text = label_text(obj, removed, snap.state.t, self.names.get(obj.id))
-            key = (tuple(np.round(obj.pose[:3, 3], 3)), tuple(np.round(obj.extent, 3)), round(obj.consistency, 2),
-                   removed, text, tuple(np.round(anchor, 3)))
+        anchors = screen_stacked(anchors, texts, self._view())
+        for (obj, removed), text, anchor in zip(drawn, texts, anchors, strict=True):
             seen.add(obj.id)
-            old = self._objects.get(obj.id)
-            if old is not None and old[0] == key:
-                continue
-            if old is not None:
-                old[1].remove()
-                old[2].remove()
-            color = (150, 150, 150) if removed else consistency_rgb(obj.consistency, self.mapping.theta_stat)
-            if self._box_like(obj):
-                box = self.server.scene.add_box(f"/map/objects/{obj.id}", color=color,
-                                                dimensions=tuple(np.asarray(obj.extent) + 0.02), wireframe=True,
-                                                position=obj.pose[:3, 3], wxyz=wxyz(obj.pose[:3, :3]))
-            else:  # rows of shelves joined at corners: their bounding box would cover the corridor
-                pts = np.asarray(obj.points, np.float32)[:: max(1, len(obj.points) // 800)]
-                box = self.server.scene.add_point_cloud(f"/map/objects/{obj.id}", pts,
-                                                        np.tile(np.array([color], np.uint8), (len(pts), 1)),
-                                                        point_size=0.04, point_shape="square")
-            label = self.server.scene.add_label(f"/map/labels/{obj.id}", text, position=anchor)
-            self._objects[obj.id] = (key, box, label)
+            self._draw_object(obj, removed, text, anchor)
         for obj_id in [i for i in self._objects if i not in seen]:
             _, box, label = self._objects.pop(obj_id)
             box.remove()
             label.remove()
+
+    def _draw_object(self, obj: MappedObject, removed: bool, text: str, anchor: np.ndarray) -> None:
+        """One object's box (or points) and its label at `anchor`; a label that only moved is moved, not re-sent."""
+        key = (tuple(np.round(obj.pose[:3, 3], 3)), tuple(np.round(obj.extent, 3)), round(obj.consistency, 2),
+               removed, text, tuple(np.round(anchor, 2)))
+        old = self._objects.get(obj.id)
+        if old is not None and old[0] == key:
+            return
+        if old is not None and old[0][:5] == key[:5]:
+            old[2].position = anchor
+            self._objects[obj.id] = (key, old[1], old[2])
+            return
+        if old is not None:
+            old[1].remove()
+            old[2].remove()
+        color = (150, 150, 150) if removed else consistency_rgb(obj.consistency, self.mapping.theta_stat)
+        if self._box_like(obj):
+            box = self.server.scene.add_box(f"/map/objects/{obj.id}", color=color,
+                                            dimensions=tuple(np.asarray(obj.extent) + 0.02), wireframe=True,
+                                            position=obj.pose[:3, 3], wxyz=wxyz(obj.pose[:3, :3]))
+        else:  # rows of shelves joined at corners: their bounding box would cover the corridor
+            pts = np.asarray(obj.points, np.float32)[:: max(1, len(obj.points) // 800)]
+            box = self.server.scene.add_point_cloud(f"/map/objects/{obj.id}", pts,
+                                                    np.tile(np.array([color], np.uint8), (len(pts), 1)),
+                                                    point_size=0.04, point_shape="square")
+        label = self.server.scene.add_label(f"/map/labels/{obj.id}", text, position=anchor)
+        self._objects[obj.id] = (key, box, label)
 
     def _draw_points(self, snap: Snapshot) -> None:
         pts = snap.map_points if snap.map_points is not None and len(snap.map_points) else np.zeros((1, 3))
