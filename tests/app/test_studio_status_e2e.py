@@ -1,7 +1,8 @@
 """What an operator reads at a glance, in a real headless Chromium (Debian's): "no path to the goal" said at once
 and Skip going on; an edit during a run said to apply at the next Start; the monitor's axes with units and its
-history over the whole run; mapped objects named by their map id ('#4') alike in the 3D labels, the E[v] legend
-and the subtasks. With UPDATE_README_SCREENSHOT=1 the mid-run screenshot of named objects becomes docs/studio.png."""
+history over the whole run; mapped objects named by their map id ('#4', '#4 box_a' once named) alike in the 3D
+labels, the E[v] legend and the subtasks. With UPDATE_README_SCREENSHOT=1 the mid-run screenshot of named objects
+becomes docs/studio.png."""
 
 import os
 import re
@@ -67,7 +68,8 @@ def test_no_path_is_said_skip_goes_on_and_edits_wait_for_the_next_start(page):
 
 @pytest.mark.slow
 def test_mapped_objects_have_one_name_in_the_view_the_legend_and_the_labels(page):
-    path = EXAMPLES_DIR / "two_pickups.yaml"
+    """anchored_picks names box_a and box_c: their mapped objects read '#1 box_a' in the 3D label and the legend."""
+    path = EXAMPLES_DIR / "anchored_picks.yaml"
     sequence = load_sequence(path)
     scene = load_scene((path.parent / sequence.scene).resolve())
     # slowed down: a browser drawing in software on a busy machine lags seconds behind the runtime
@@ -77,14 +79,17 @@ def test_mapped_objects_have_one_name_in_the_view_the_legend_and_the_labels(page
         open_studio(page, studio)
         page.get_by_role("button", name="Start").click()
         wait_for(lambda: len(studio.map_view.drawn_objects()) >= 2, 120, "two mapped objects")
+        wait_for(lambda: any(" box_a E[v]=" in d.label for d in studio.map_view.drawn_objects().values()), 120,
+                 "box_a named in its object's label")
         page.get_by_role("tab", name="Monitor").click()
         page.wait_for_timeout(3000)
         drawn = studio.map_view.drawn_objects()
         for object_id, d in drawn.items():
             assert d.label.startswith(f"#{object_id} ") and " · seen " in d.label
+        named = next(i for i, d in drawn.items() if d.label.startswith(f"#{i} box_a "))
         legend = " ".join(page.evaluate("() => [...document.querySelectorAll('.u-legend')].map(e => e.textContent)"))
-        assert any(f"#{i}" in legend for i in drawn), legend
-        assert "obj 0" not in legend
+        assert f"#{named} box_a" in legend, legend
+        assert "obj 0" not in legend and "object_" not in legend
         # labels never overprint on this page, seen through its own camera
         view = View.of(next(iter(studio.server.get_clients().values())).camera)
         assert view is not None
