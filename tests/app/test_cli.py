@@ -50,6 +50,23 @@ def test_targets_the_robot_cannot_take_are_refused_before_the_run(tmp_path):
     assert "line 6: subtasks.1.target" in proc.stderr and "nearest acceptable: (2.00, 0.00," in proc.stderr
 
 
+def test_a_goal_in_a_closed_pen_is_refused_before_the_run(tmp_path):
+    """The scene is known (simulation): a base goal no path reaches from the robot's start is refused with exit 2,
+    naming the box that closes it in and the nearest reachable place (it used to time out after 60 s)."""
+    from tests.app.test_no_path import pen_scene
+
+    boxes = "".join(f"- {{id: {b.id}, position: [{b.position[0]:.2f}, {b.position[1]:.2f}, 0.3]}}\n"
+                    for b in pen_scene().boxes)
+    (tmp_path / "pen.yaml").write_text(f"robot_start: [0.0, 0.0, 0.0]\nboxes:\n{boxes}")
+    seq = tmp_path / "into_the_pen.yaml"
+    seq.write_text("scene: pen.yaml\nsubtasks:\n- kind: base\n  target: {x: 4.0, y: 0.0}\n")
+    proc = run_cli("run", "--sequence", str(seq), timeout=180)
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert f"{seq}: 1 problem\n" in proc.stderr
+    assert "line 4: subtasks.0.target" in proc.stderr and "no path reaches it from (0.00, 0.00)" in proc.stderr
+    assert "nearest pen_" in proc.stderr and "nearest acceptable: (" in proc.stderr
+
+
 @pytest.mark.slow
 def test_headless_run_with_params_reports_them(tmp_path):
     params = tmp_path / "p.yaml"
