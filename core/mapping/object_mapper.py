@@ -282,7 +282,7 @@ class ObjectMapper:
         if explained and after < p.registration_accept_ratio * before and before - after > gain_m:
             obj.move(np.linalg.inv(result.T))
             seen.distances = obj.distance(seen.sample, p.association_cap_m)
-            log.debug("object %d moved by %s (cost %.3f → %.3f m)", obj.id, np.round(-result.T[:3, 3], 3),
+            log.debug("object #%d moved by %s (cost %.3f → %.3f m)", obj.id, np.round(-result.T[:3, 3], 3),
                       before, after)
 
     def _movable(self, obj: TrackedObject) -> bool:
@@ -323,7 +323,7 @@ class ObjectMapper:
         inside = obj.interior(p.edf_voxel_m, p.explain_m)
         if np.sum(view.classify(inside) == THROUGH) >= p.hollow_min_through:
             obj.hollow = True
-            log.info("object %d: free space seen inside its box %s, mapped by its surface", obj.id,
+            log.info("object #%d: free space seen inside its box %s, mapped by its surface", obj.id,
                      np.round(obj.extent, 2))
 
     def _check_completion(self, obj: TrackedObject, view: FrameView) -> None:
@@ -384,7 +384,7 @@ class ObjectMapper:
             obj = self.objects.pop(object_id)
             obj.status = ObjectStatus.REMOVED
             self.removed_ids.append(object_id)
-            log.info("object %d removed, %s (E[v] = %.2f after %d updates)", object_id, why,
+            log.info("object #%d removed, %s (E[v] = %.2f after %d updates)", object_id, why,
                      obj.posterior.consistency, obj.updates)
 
     def _create_all(self, leftovers: list[Segment], camera: np.ndarray) -> None:
