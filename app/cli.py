@@ -252,7 +252,8 @@ def run_headless(args) -> int:
                                                                    for p in runtime.sequencer.progress),
             "fault": runtime.fault}
     summary = write_report(out, runtime.log, runtime.require_world().obstacles(), meta, runtime.problems)
-    print(f"{runtime.run_state.value}: {runtime.status_line()}")
+    state, line = runtime.run_state.value, runtime.status_line()
+    print(line if line.startswith(f"{state}:") else f"{state}: {line}")  # never 'failed: failed: …'
     print(f"problems: {summary_line(runtime.problems.counts())}")
     for key, value in summary.items():
         print(f"  {key}: {value:.3f}" if isinstance(value, float) else f"  {key}: {value}")

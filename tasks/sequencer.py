@@ -286,7 +286,8 @@ class Sequencer:
         if elapsed > sub.timeout_s:
             p = self.progress[self.index]
             why = "no path to the goal; " if p.no_path else "blocked; " if p.blocked is not None else ""
-            msg = f"timed out after {sub.timeout_s:g} s ({why}{pos_err:.2f} m from the goal)"
+            ori = "" if math.isnan(ori_err) else f", {ori_err:.0f}°"  # 0.01 m off may fail by its heading
+            msg = f"timed out after {sub.timeout_s:g} s ({why}{pos_err:.2f} m{ori} from the goal)"
             self._set_progress(Outcome.FAILED, elapsed, held, pos_err, ori_err, msg)
             log.warning("subtask %d failed: %s", self.index + 1, msg)
             return None

@@ -67,6 +67,19 @@ def test_a_goal_in_a_closed_pen_is_refused_before_the_run(tmp_path):
     assert "nearest pen_" in proc.stderr and "nearest acceptable: (" in proc.stderr
 
 
+def test_a_failed_run_says_so_once_with_what_failed_it(tmp_path):
+    """Exit 1 and one line 'failed: <subtask>: timed out …' (it read 'failed: failed: …'), the bar at 100 %."""
+    seq = tmp_path / "short.yaml"
+    seq.write_text(f"scene: {ROOT / 'core/scenes/default.yaml'}\nsubtasks:\n- name: too far for 1 s\n  kind: base\n"
+                   "  target: {x: 1.5, y: -0.2, yaw_deg: 90}\n  timeout_s: 1.0\n")
+    proc = run_cli("run", "--map", "ground_truth", "--sequence", str(seq), "--out", str(tmp_path / "out"))
+    assert proc.returncode == 1, proc.stderr[-2000:]
+    line = next(x for x in proc.stdout.splitlines() if x.startswith("failed"))
+    assert line.startswith("failed: too far for 1 s: timed out after 1 s (") and "failed: failed" not in line
+    assert "° from the goal)" in line
+    assert "100%" in proc.stdout
+
+
 @pytest.mark.slow
 def test_headless_run_with_params_reports_them(tmp_path):
     params = tmp_path / "p.yaml"

@@ -61,6 +61,16 @@ def test_timeout_fails_with_clear_status(robot):
     assert "timed out" in s.status_line() and "far" in s.status_line()
 
 
+def test_a_timeout_says_the_heading_that_failed_it(robot):
+    """At the goal's position but turned away: the message gives the angle, not only '0.00 m from the goal'
+    (the aisle's lap-2 pick read 'timed out after 30 s (0.01 m from the goal)')."""
+    seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=0.0, y=0.0, yaw_deg=90.0), timeout_s=5.0)])
+    s = Sequencer(robot, seq)
+    s.update(state_at(0.0, 0.0), None, 0.0)
+    assert s.update(state_at(0.0, 0.0), None, 5.1) is None
+    assert s.progress[0].message == "timed out after 5 s (0.00 m, 90° from the goal)"
+
+
 def test_manipulation_stance_and_ee_first(robot):
     seq = TaskSequence(subtasks=[EESubtask(target=EEPose(position=(2.5, 0.0, 0.8), rpy_deg=(0, 90, 0)))])
     s = Sequencer(robot, seq)
