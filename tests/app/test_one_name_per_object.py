@@ -71,5 +71,6 @@ def test_a_named_object_has_one_name_in_the_view_the_legend_the_names_tab_and_th
 
     posterior = dict(snapshot_messages(snap))["/map/posterior"]
     assert [o["label"] for o in posterior["objects"]] == ["#4 box_3", "#5"]
+    assert snap.object_map is not None
     scene = foxglove_objects(snap.state.t, snap.object_map, 0.4, operator_names(snap.anchors))
     assert b"#4 box_3 E[v]=" in scene and b"#5 E[v]=" in scene
