@@ -286,6 +286,15 @@ class ClosedLoop:
                 self.run_state = RunState.RUNNING
         log.info("sequence %r started (%s)", sequence.name, plural(len(sequence.subtasks), "subtask"))
 
+    @property
+    def under_way(self) -> bool:
+        """A run is under way: running, or interrupted mid-sequence so that Start resumes it."""
+        with self.lock:
+            return self._under_way()
+
+    def _under_way(self) -> bool:
+        return self.run_state == RunState.RUNNING or self._resumable()
+
     def _resumable(self) -> bool:
         """Whether Start resumes: the run was interrupted (paused, stopped, e-stopped) with a subtask begun
         and the sequence neither finished nor failed (call under `lock`)."""
@@ -345,9 +354,10 @@ class ClosedLoop:
             return True
 
     def set_sequence(self, sequence: TaskSequence) -> None:
-        """A new authored sequence: shown at once unless a run is under way (it keeps its copy)."""
+        """A new authored sequence: shown at once unless a run is under way (`under_way`: running, or paused,
+        stopped or e-stopped mid-sequence, which Start resumes): that run keeps its copy to the end."""
         with self.step_lock, self.lock:
-            if self.run_state != RunState.RUNNING:
+            if not self._under_way():
                 self.sequencer = self._sequencer(sequence)
                 self.view = SequenceView.of(self.sequencer)
 

@@ -151,6 +151,11 @@ class Runtime:
         return self._loop.run_state
 
     @property
+    def under_way(self) -> bool:
+        """A run is under way (running, or paused/stopped mid-sequence): sequence edits wait for the next run."""
+        return self._loop.under_way
+
+    @property
     def fault(self) -> str | None:
         """Why the run is faulted (None when it is not); Start is refused until `reset`."""
         return self._loop.fault_reason
@@ -303,8 +308,9 @@ class Runtime:
     def set_sequence(self, sequence: TaskSequence, *, scene_may_change: bool = False, indices: list[int] | None = None,
                      source: str = "sequence", text: str | None = None) -> list[TargetFinding]:
         """Replace the authored sequence once its targets pass the target checks (`app.target_check`, as at
-        every other edge; `indices`: only those subtasks); a running sequence keeps its copy until the next
-        start. Raises `TargetError` (nothing changes); returns the warnings."""
+        every other edge; `indices`: only those subtasks); a run under way (running, or paused or stopped
+        mid-sequence, which Start resumes) keeps its copy to its end: the edit runs in the next run. Raises
+        `TargetError` (nothing changes); returns the warnings."""
         warnings = check_targets(self, sequence, scene_may_change=scene_may_change, indices=indices, source=source,
                                  text=text)
         self.sequence = sequence

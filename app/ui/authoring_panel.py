@@ -18,7 +18,7 @@ import viser.transforms as vtf
 
 from app.recording.replay import ReplaySource
 from app.runtime import Runtime
-from app.runtime.snapshot import RunState, Snapshot
+from app.runtime.snapshot import Snapshot
 from app.ui.authoring import (
     PRIORITY_CHOICES,
     SequenceHistory,
@@ -37,7 +37,8 @@ from tasks.schema import BaseSubtask, EEPose, TaskSequence
 from tasks.sequence_file import parse_sequence, sequence_to_yaml
 from tasks.validation import Severity, TargetError, TargetFinding, changed_subtasks
 
-NEXT_START = "The run goes on with the sequence it started with; this edit applies at the next Start."
+NEXT_RUN = ("The run under way goes on with the sequence it started with (Start resumes it after Pause or Stop); "
+            "this edit runs in the next run: Start after this one ends, or Reset.")
 NONE: str = "(none)"
 """The dropdown entry that selects nothing."""
 
@@ -134,8 +135,8 @@ class AuthoringPanel:
                                              source=source, text=text)
         self._version = self.runtime.sequence_version
         self._refresh(seq, select)
-        if getattr(self.runtime, "run_state", None) in (RunState.RUNNING, RunState.PAUSED):
-            notify_all(self.server, "Applies at the next Start", NEXT_START, color="yellow")
+        if getattr(self.runtime, "under_way", False):
+            notify_all(self.server, "Applies to the next run", NEXT_RUN, color="yellow")
         return warnings
 
     def _refresh(self, seq: TaskSequence | None = None, select: int | None = None) -> None:

@@ -39,6 +39,14 @@ def shown_state(snap: Snapshot) -> str:
     return snap.run_state.value
 
 
+def under_way_in(snap: Snapshot) -> bool:
+    """A run under way: running, or paused/stopped mid-sequence (Start resumes it; edits wait for the next run)."""
+    if snap.run_state == RunState.RUNNING:
+        return True
+    return snap.run_state not in (RunState.FINISHED, RunState.FAILED) and not fresh(snap) and bool(snap.progress) \
+        and not all(p.outcome.value in ("done", "skipped") for p in snap.progress)
+
+
 BAR_COLOURS: dict[RunState, NamedColour] = {RunState.FAILED: "red", RunState.ESTOP: "red", RunState.FINISHED: "green"}
 """The progress bar's colour by run state (blue otherwise)."""
 
@@ -56,13 +64,14 @@ class ProgressPanel:
         self._recent_index = -1
         self._announced: set[tuple] = set()
         self._run_version: int | None = None
-        """The authored sequence's version when the run started (edits after it apply at the next Start)."""
-        self._last_state = RunState.IDLE
+        """The authored sequence's version when the run under way began (edits after it run in the next run)."""
+        self._was_under_way = False
 
     def update(self, snap: Snapshot) -> None:
-        if snap.run_state == RunState.RUNNING and self._last_state not in (RunState.RUNNING, RunState.PAUSED):
+        under_way = under_way_in(snap)
+        if under_way and not self._was_under_way:
             self._run_version = snap.sequence_version
-        self._last_state = snap.run_state
+        self._was_under_way = under_way
         self.status.content = self._status(snap)
         self.bar.value = round(100.0 * self._fraction(snap), 1)
         self.bar.color = BAR_COLOURS.get(snap.run_state, "blue")
@@ -110,9 +119,9 @@ class ProgressPanel:
 
     def _time_left(self, snap: Snapshot) -> str:
         text = self._progress_text(snap)
-        if snap.run_state in (RunState.RUNNING, RunState.PAUSED) and self._run_version is not None \
-                and snap.sequence_version != self._run_version:
-            text += f"  \n{glyphs.WARNING} the sequence was edited during the run: the edits apply at the next Start"
+        if under_way_in(snap) and self._run_version is not None and snap.sequence_version != self._run_version:
+            text += (f"  \n{glyphs.WARNING} the sequence was edited during the run: the edits run in the next run "
+                     "(Start after this one ends, or Reset)")
         return text
 
     def _progress_text(self, snap: Snapshot) -> str:

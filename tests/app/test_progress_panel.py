@@ -1,5 +1,6 @@
 """The status the progress panel writes, from made-up snapshots: no '0 s' artefacts, ETAs within the timeout,
-'ready' for a sequence authored after a finished run, edits during a run applying at the next Start."""
+'ready' for a sequence authored after a finished run, edits during a run (paused or stopped too) waiting for the next
+run."""
 
 import re
 from dataclasses import replace
@@ -76,12 +77,21 @@ def test_no_path_and_blocked_are_said_in_the_list(panel):
     assert "blocked: no progress for 12 s, 3.00 m from the goal; nearest obstacle" in panel.subtasks.content
 
 
-def test_edits_during_a_run_apply_at_the_next_start(panel):
+def test_edits_during_a_run_apply_to_the_next_run(panel):
     active = replace(pending(2)[0], outcome=Outcome.ACTIVE, position_error_m=2.0)
     progress = [active, pending(2)[1]]
     panel.update(snap(1.0, RunState.RUNNING, progress, version=3))
-    assert "next Start" not in panel.time_left.content
+    assert "next run" not in panel.time_left.content
     panel.update(snap(1.1, RunState.RUNNING, progress, version=4))  # a goal added while running
-    assert "the edits apply at the next Start" in panel.time_left.content
-    panel.update(snap(1.2, RunState.IDLE, pending(3), version=4))
-    assert "next Start" not in panel.time_left.content
+    assert "the edits run in the next run" in panel.time_left.content
+    panel.update(snap(1.2, RunState.PAUSED, progress, version=5))  # paused or stopped: Start resumes this run
+    assert "the edits run in the next run" in panel.time_left.content
+    panel.update(snap(1.3, RunState.IDLE, progress, version=5))
+    assert "the edits run in the next run" in panel.time_left.content
+    panel.update(snap(1.4, RunState.RUNNING, progress, version=5))  # resumed: still the old run
+    assert "the edits run in the next run" in panel.time_left.content
+    panel.update(snap(1.5, RunState.IDLE, pending(3), version=5))  # Reset: the edited sequence is ready
+    assert "next run" not in panel.time_left.content
+    panel.update(snap(1.6, RunState.RUNNING, [replace(pending(3)[0], outcome=Outcome.ACTIVE)] + pending(3)[1:],
+                      version=5))
+    assert "next run" not in panel.time_left.content

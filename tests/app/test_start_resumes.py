@@ -42,6 +42,25 @@ def test_start_resumes_the_active_subtask(interrupt: str) -> None:
     assert elapsed < progress[1].elapsed_s < elapsed + 1.0  # its clock went on from where it stood
 
 
+@pytest.mark.parametrize("interrupt", ["pause", "stop"])
+def test_an_edit_while_interrupted_waits_for_the_next_run(interrupt: str) -> None:
+    """Paused (or stopped) mid-sequence and edited: Start resumes the run it interrupted (the second leg, not the
+    edited sequence from its first subtask, as it did while the studio said the run goes on); the edit runs next."""
+    rt = _into_second_leg()
+    getattr(rt, interrupt)()
+    assert rt.under_way
+    edited = TWO_LEGS.model_copy(update={"subtasks": [*TWO_LEGS.subtasks,
+                                                      BaseSubtask(name="third leg", target=BasePose(x=0.8, y=-0.8))]})
+    rt.set_sequence(edited)
+    assert len(rt.sequencer.progress) == 2 and rt.sequencer.index == 1  # the interrupted run, as it stood
+    rt.start()
+    rt.run_lockstep(60.0)
+    assert rt.run_state == RunState.FINISHED and [p.name for p in rt.sequencer.progress] == ["first leg", "second leg"]
+    assert not rt.under_way
+    rt.start()  # the next run is the edited sequence
+    assert [p.name for p in rt.sequencer.progress] == ["first leg", "second leg", "third leg"]
+
+
 def test_reset_starts_over_and_start_after_the_end_runs_again() -> None:
     rt = _into_second_leg()
     rt.stop()

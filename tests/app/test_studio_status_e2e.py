@@ -1,5 +1,5 @@
 """What an operator reads at a glance, in a real headless Chromium (Debian's): "no path to the goal" said at once
-and Skip going on; an edit during a run said to apply at the next Start; the monitor's axes with units and its
+and Skip going on; an edit during a run said to wait for the next run; the monitor's axes with units and its
 history over the whole run; mapped objects named by their map id ('#4', '#4 box_a' once named) alike in the 3D
 labels, the E[v] legend and the subtasks. With UPDATE_README_SCREENSHOT=1 the mid-run screenshot of named objects
 becomes docs/studio.png."""
@@ -38,12 +38,12 @@ def test_no_path_is_said_skip_goes_on_and_edits_wait_for_the_next_start(page):
         assert np.hypot(*runtime.state.q[:2]) < 0.05  # held
         page.screenshot(path=str(ARTIFACTS / "studio_no_path.png"))
 
-        # an edit while it runs: said to apply at the next Start, and the run keeps its two subtasks
+        # an edit while it runs: said to wait for the next run, and the run keeps its two subtasks
         set_vector(page, "Target (m)", (-1.5, 1.0, 0.9))
         page.get_by_role("button", name="Base goal").click()
         wait_for(lambda: len(runtime.sequence.subtasks) == 3, 30, "the added goal")
-        page.get_by_text("the edits apply at the next Start").first.wait_for()
-        page.get_by_text("Applies at the next Start").first.wait_for()  # the notice
+        page.get_by_text("the edits run in the next run").first.wait_for()
+        page.get_by_text("Applies to the next run").first.wait_for()  # the notice
         assert len(runtime.sequencer.progress) == 2
 
         page.get_by_role("button", name="Skip").click()
