@@ -163,9 +163,10 @@ class ObjectNames:
 
 def map_objects(names: ObjectNames, world_map: WorldMap, sequence: TaskSequence, world: SimWorld | None,
                 t: float) -> MapObjects | None:
-    """What the sequencer sees of the map for `sequence`'s named objects (None when it names none): the object
-    map's live objects, or with the ground-truth map the simulated boxes themselves."""
-    if not sequence.objects:
+    """What the sequencer sees of the map for `sequence`'s named objects and the names the operator gave since
+    (None when there are none): the object map's live objects, or with the ground-truth map the simulated boxes
+    themselves."""
+    if not sequence.objects and not names.bound():
         return None
     truth = None if world is None else {b.id: np.asarray(b.position, float) for b in world.boxes()}
     return names.view(t, _seen(world_map, world), sequence.objects, truth)

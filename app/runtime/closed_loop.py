@@ -689,6 +689,14 @@ class ClosedLoop:
         with self.lock:
             self.timings_ms["control"] = (time.perf_counter() - t0) * 1e3
 
+    def refresh_objects_view(self) -> None:
+        """The named objects as the sequencer will see them, now (a name given while paused shows at once; call
+        under `step_lock`)."""
+        with self.using_map() as world_map:
+            objects = map_objects(self.names, world_map, self.sequencer.sequence, self.world, self.state.t)
+        with self.lock:
+            self.objects_view = objects
+
     def _unknown_notice(self, state: RobotState, refs: References | None, edf: LocalEDF | None) -> str | None:
         """Unknown space slowing the base now: counted, and a new episode recorded as a problem."""
         p = self.controller.params

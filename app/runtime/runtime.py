@@ -333,6 +333,7 @@ class Runtime:
         sequence = TaskSequence.model_validate({**seq.model_dump(), "objects": objects})
         with loop.step_lock:  # the control step reads the names (live mode: another thread)
             loop.names.name(name, obj, self.time)
+            loop.refresh_objects_view()  # the name shows at once, paused too
         self.set_sequence(sequence)
         return sequence
 

@@ -4,19 +4,24 @@ scene); the Names tab lists and binds it as '#4', and draws no second label of i
 a neighbour's."""
 
 import numpy as np
+import pytest
 import viser
 
 from app.object_label import map_id, operator_names, shown_id
 from app.recording.foxglove_scene import mapped_objects as foxglove_objects
 from app.recording.topics import snapshot_messages
+from app.runtime import Runtime, RuntimeConfig
 from app.runtime.snapshot import RunState, Snapshot
 from app.target_check import named_boxes
 from app.ui.anchor_panel import AnchorPanel, binding_lines
 from app.ui.map_view import MapView
 from app.ui.monitor_panel import MonitorPanel
 from core.params import MappingParams
+from core.scene import load_scene
 from core.types import MappedObject, ObjectMapSnapshot, RobotState
+from tasks import load_sequence
 from tasks.anchors import MapObjects, ObjectView
+from tasks.sequence_file import EXAMPLES_DIR
 from tasks.sequencer import SubtaskProgress
 from tests.app.conftest import free_port
 
@@ -74,3 +79,21 @@ def test_a_named_object_has_one_name_in_the_view_the_legend_the_names_tab_and_th
     assert snap.object_map is not None
     scene = foxglove_objects(snap.state.t, snap.object_map, 0.4, operator_names(snap.anchors))
     assert b"#4 box_3 E[v]=" in scene and b"#5 E[v]=" in scene
+
+
+@pytest.mark.slow
+def test_a_name_given_while_paused_shows_at_once_on_a_sequence_that_names_nothing():
+    """two_pickups declares no objects: a name given in the Names tab (here while paused) reaches the snapshot the
+    labels and the legend are drawn from at once, not at the next control step or the next run."""
+    path = EXAMPLES_DIR / "two_pickups.yaml"
+    sequence = load_sequence(path)
+    rt = Runtime(RuntimeConfig(map_kind="object"), scene=load_scene((path.parent / sequence.scene).resolve()),
+                 sequence=sequence)
+    rt.start()
+    rt.run_lockstep(3.0, until_done=False)
+    rt.pause()
+    snap = rt.snapshot()
+    assert snap.object_map is not None and snap.object_map.objects and operator_names(snap.anchors) == {}
+    first = snap.object_map.objects[0].id
+    rt.name_object("crate", f"object_{first}")
+    assert operator_names(rt.snapshot().anchors) == {first: "crate"}
