@@ -46,7 +46,8 @@ def validate(request: Request, body: SequenceIn) -> ValidationOut:
 
 @router.put("", dependencies=[Depends(require_token)], responses=AUTH_ERRORS)
 def load(attached: Attached, body: SequenceIn) -> SequenceOut:
-    """Load YAML text as the authored sequence (a running sequence keeps its copy until the next start).
+    """Load YAML text as the authored sequence (a run under way, running or paused/stopped mid-sequence, keeps its
+    copy to its end).
 
     422 lists every problem with its field and line (schema, and targets the robot cannot reach or that are too
     close to a box, each with the nearest acceptable value); nothing is loaded then."""
