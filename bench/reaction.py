@@ -174,7 +174,8 @@ def measure_reactions(events: int, max_wall_s: float, config: RuntimeConfig | No
 def loop_health(rt: Runtime, stamps: StageStamps, wall_s: float) -> dict[str, float]:
     """Control steps started more than one period late (% of steps; robot time), the 99th percentile of how late
     they started (ms), the control step's time (p95 ms, the latest `keep_s`), and the frames the map integrated per
-    wall second of each camera (the mapping loop keeps only the newest frame of each camera when behind)."""
+    wall second of each camera (the mapping loop keeps only the newest frame of each camera when behind), and the
+    control steps per wall second (more than the control rate where a new map triggers them)."""
     live = rt.live
     if live is None:
         return {}
@@ -186,4 +187,5 @@ def loop_health(rt: Runtime, stamps: StageStamps, wall_s: float) -> dict[str, fl
               "control_step_p95_ms": float(np.percentile(control_ms, 95)) if control_ms else float("nan"),
               "physics_late": float(live.physics.stats.late) if live.physics is not None else float("nan")}
     health |= {f"{camera}_frames_integrated_hz": n / wall_s for camera, n in stamps.frames_integrated.items()}
+    health["control_steps_hz"] = live.control_steps / wall_s
     return health

@@ -1,13 +1,15 @@
 """What rates the two cores allow, measured: the reaction to a box in the robot's way (bench/reaction.py) with the
-base camera and the control loop at the default rates (10 Hz each) and faster (base camera 30 Hz, control 20 and
-25 Hz), one setting after the other in one run, beside how the live loops kept time at each: control steps started
-more than one period late, how late (p99), the control step's time, and the frames the map integrated per second of
-each camera (when it falls behind, the mapping loop integrates only the newest frame of each camera).
+base camera and the control loop at 10 Hz each and faster (base camera 30 Hz, control 20 Hz), each with and without
+a control step on every new map, one setting after the other in one run, beside how the live loops kept time at
+each: control steps started more than one period late, how late (p99), the control step's time, the control steps a
+second, and the frames the map integrated per second of each camera (when it falls behind, the mapping loop
+integrates only the newest frame of each camera).
 
     python -m bench.reaction_rates [--quick]
 
 Figures are named `<figure>_<setting>`, the setting `b<base camera Hz>_c<control Hz>` (the hand camera stays at
-10 Hz). No default changes with this benchmark: it measures what a change would give.
+10 Hz), with `_map<Hz>` where a control step also runs as soon as the map has taken a new frame, at most that many a
+second (`HTMPCParams.control_on_new_map`, `control_max_rate_hz`; the settings without it switch it off).
 """
 
 from __future__ import annotations
@@ -24,23 +26,29 @@ from core.params import CameraParams, HTMPCParams, SimParams
 
 log = logging.getLogger(__name__)
 
-SETTINGS = ((10.0, 10.0), (30.0, 10.0), (10.0, 20.0), (30.0, 20.0), (30.0, 25.0))
-"""(base camera Hz, control Hz)."""
+SETTINGS = ((10.0, 10.0, 0.0), (30.0, 10.0, 0.0), (30.0, 20.0, 0.0), (10.0, 10.0, 20.0), (30.0, 10.0, 20.0),
+            (30.0, 10.0, 30.0), (30.0, 20.0, 30.0))
+"""(base camera Hz, control Hz, the most control steps a second a new map may trigger: 0 for none,
+`HTMPCParams.control_on_new_map` and `control_max_rate_hz`)."""
 EVENTS = {True: 10, False: 40}
 KEPT = ("reaction_ms_p50", "reaction_ms_p95", "reaction_ms_max", "processing_ms_p95", "reaction_events",
         "reaction_frame_wait_ms_p50", "reaction_mapping_ms_p95", "reaction_control_wait_ms_p50",
-        "reaction_control_wait_ms_p95", "reaction_solve_ms_p95", "reaction_command_ms_p50")
+        "reaction_control_wait_ms_p95", "reaction_solve_ms_p95", "reaction_command_ms_p50",
+        "reaction_references_ms_p50")
 
 
-def config(base_camera_hz: float, control_hz: float) -> RuntimeConfig:
+def config(base_camera_hz: float, control_hz: float, triggered_hz: float = 0.0) -> RuntimeConfig:
     sim = SimParams()
-    return RuntimeConfig(map_kind="object", htmpc=replace(HTMPCParams(), control_rate_hz=control_hz),
+    htmpc = replace(HTMPCParams(), control_rate_hz=control_hz, control_on_new_map=triggered_hz > 0,
+                    control_max_rate_hz=triggered_hz or HTMPCParams().control_max_rate_hz)
+    return RuntimeConfig(map_kind="object", htmpc=htmpc,
                          sim=replace(sim, base_camera=replace(CameraParams(), rate_hz=base_camera_hz)))
 
 
-def setting_figures(base_camera_hz: float, control_hz: float, events: int) -> dict[str, float]:
+def setting_figures(base_camera_hz: float, control_hz: float, triggered_hz: float, events: int) -> dict[str, float]:
     """The reaction figures and the loops' health at one setting."""
-    run = measure_reactions(events, max_wall_s=60.0 + 6.0 * events, config=config(base_camera_hz, control_hz))
+    run = measure_reactions(events, max_wall_s=60.0 + 6.0 * events,
+                            config=config(base_camera_hz, control_hz, triggered_hz))
     figures = {k: v for k, v in reaction_figures(run).items() if k in KEPT}
     return figures | run.health
 
@@ -48,10 +56,11 @@ def setting_figures(base_camera_hz: float, control_hz: float, events: int) -> di
 def main(argv: list[str] | None = None) -> None:
     args = bench_args(__doc__.splitlines()[0] if __doc__ else "", argv)
     figures: dict[str, float] = {"load_avg_before": os.getloadavg()[0]}
-    for base_hz, control_hz in SETTINGS:
-        name = f"b{base_hz:.0f}_c{control_hz:.0f}"
+    for base_hz, control_hz, triggered_hz in SETTINGS:
+        name = f"b{base_hz:.0f}_c{control_hz:.0f}" + (f"_map{triggered_hz:.0f}" if triggered_hz else "")
         log.info("setting %s", name)
-        figures |= {f"{k}_{name}": v for k, v in setting_figures(base_hz, control_hz, EVENTS[args.quick]).items()}
+        figures |= {f"{k}_{name}": v
+                    for k, v in setting_figures(base_hz, control_hz, triggered_hz, EVENTS[args.quick]).items()}
     figures["load_avg_after"] = os.getloadavg()[0]
     units = {k: "ms" if "_ms_" in k else "%" if "_pct_" in k else "Hz" if "_hz_" in k else "" for k in figures}
     write_result("reaction_rates", figures, units, quick=args.quick)

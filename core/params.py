@@ -206,7 +206,16 @@ class HTMPCParams:
     cycled with large steps unless damped this much (docs/decisions.md, "Damping of the real-time
     iteration")."""
     control_rate_hz: float = 10.0
+    """The control step's rate when nothing new is seen (its period is also the instant the step rows hold at)."""
     command_rate_hz: float = 100.0
+    control_on_new_map: bool = True
+    """Also run a control step as soon as the map has taken a new frame of `control_trigger_cameras`, and start
+    the control period from it: a newly seen obstacle reaches the plan without waiting for the next period
+    (our addition; docs/decisions.md, "Control on a new map")."""
+    control_trigger_cameras: tuple[str, ...] = ("base", "hand")
+    """Whose integrated frames trigger a control step (`control_on_new_map`)."""
+    control_max_rate_hz: float = 20.0
+    """Triggered steps never come closer than 1 / this (s of robot time): bounds the CPU a fast camera costs."""
     hierarchy: Hierarchy = "lexicographic"
     """'lexicographic' (eqs. 6–7) or 'weighted' (one weighted-sum MPC, for comparison)."""
     trust_region_m: float = 1.0

@@ -51,6 +51,7 @@ POSITIVE = frozenset({
     "SimParams.timestep_s", "SimParams.room_half_size_m", "SimParams.box_pool",
     "HTMPCParams.N", "HTMPCParams.dt_s", "HTMPCParams.gamma", "HTMPCParams.sqp_iters",
     "HTMPCParams.sqp_iters_on_switch", "HTMPCParams.control_rate_hz", "HTMPCParams.command_rate_hz",
+    "HTMPCParams.control_max_rate_hz",
     "HTMPCParams.trust_region_m", "HTMPCParams.trust_region_rad", "HTMPCParams.solve_timeout_ms",
     "MappingParams.voxel_m", "MappingParams.range_m", "MappingParams.pixel_stride", "MappingParams.tau_m",
     "MappingParams.delta_max_m", "MappingParams.beta_cap", "MappingParams.edf_voxel_m",
@@ -142,6 +143,6 @@ def parse_params(text: str, source: str = "<params>") -> Tunables:
     return load_yaml_model(text, ParamsFile, source).tunables()
 
 
-def load_params(path: str | Path) -> Tunables:
-    """Tunables from a YAML file (see the module docstring)."""
-    return load_yaml_file(path, ParamsFile).tunables()
+def load_params(path: str | Path, base: Tunables | None = None) -> Tunables:
+    """Tunables from a YAML file (see the module docstring) over `base` (default: the defaults)."""
+    return load_yaml_file(path, ParamsFile).tunables(base)

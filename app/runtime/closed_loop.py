@@ -191,6 +191,10 @@ class ClosedLoop:
         """Running on a plan from a control step older than this (robot s) is a fault (live mode sets it;
         lockstep is never late)."""
         self._last_control_t = -math.inf
+        self.frames_skipped = 0
+        """Live: depth frames the mapping loop skipped because it was behind (`wait_for_frames`)."""
+        self._map_news = False
+        """The map took frames of `HTMPCParams.control_trigger_cameras` since the last control step."""
         self.log = RunLog()
         self.problems = ProblemLog(1e3 / config.htmpc.control_rate_hz)
         self.control_steps = 0
@@ -586,31 +590,45 @@ class ClosedLoop:
             return self.state
 
     def wait_for_frames(self, timeout_s: float) -> bool:
-        """Live mapping: wait for frames; when behind, keep only the newest frame of each camera."""
+        """Live mapping: wait for frames; when behind, keep only the newest frame of each camera, and count each
+        frame skipped as a problem (the camera's rate is not kept: say so rather than map at a slower rate)."""
         with self.frames_ready:
             if not self._frames:
                 self.frames_ready.wait(timeout=timeout_s)
             if not self._frames:
                 return False
             newest: dict[str, DepthFrame] = {}
+            skipped: dict[str, int] = {}
             for f in self._frames:
+                if f.camera in newest:
+                    skipped[f.camera] = skipped.get(f.camera, 0) + 1
                 newest[f.camera] = f
             self._frames.clear()
             self._frames.extend(sorted(newest.values(), key=lambda f: f.t))
-            return True
+        if skipped:
+            self._frames_skipped(skipped, max(f.t for f in newest.values()))
+        return True
+
+    def _frames_skipped(self, skipped: dict[str, int], t: float) -> None:
+        for camera, n in skipped.items():
+            self.frames_skipped += n
+            self.problems.record(ProblemKind.FRAMES_SKIPPED, t,
+                                 f"the map fell behind the {camera} camera: {n} frame{'s' if n > 1 else ''} "
+                                 f"skipped ({self.frames_skipped} in all; only the newest is integrated)")
 
     def wake_mapping(self) -> None:
         with self.frames_ready:
             self.frames_ready.notify_all()
 
-    def integrate_frames(self, now: float) -> None:
-        """Give the map every queued frame older than the modelled perception delay (none while faulted)."""
+    def integrate_frames(self, now: float) -> tuple[str, ...]:
+        """Give the map every queued frame older than the modelled perception delay (none while faulted); the
+        cameras whose frames it took."""
         with self.frames_ready:
             due = []
             while self._frames and self._frames[0].t <= now - self.config.perception_delay_s + 1e-9:
                 due.append(self._frames.popleft())
         if not due or self.fault_reason is not None:
-            return
+            return ()
         with self.lock:
             frames, state = self._at_exposure(due)
             for frame in frames:  # the studio's clouds too, where the camera was
@@ -624,6 +642,16 @@ class ClosedLoop:
         if self.stamps is not None:
             self._stamp_integration(world_map, frames, t0, t1)
         self.localize(frames)
+        p = self.controller.params
+        if p.control_on_new_map and any(f.camera in p.control_trigger_cameras for f in frames):
+            self._map_news = True
+        return tuple(f.camera for f in frames)
+
+    def control_triggered(self, t: float) -> bool:
+        """Whether the map has taken frames that call for a control step now (`HTMPCParams.control_on_new_map`):
+        new frames of `control_trigger_cameras` since the last step, at least 1 / `control_max_rate_hz` of robot
+        time after it (until then the news waits)."""
+        return self._map_news and t + 1e-9 >= self._last_control_t + 1.0 / self.controller.params.control_max_rate_hz
 
     def _stamp_integration(self, world_map: WorldMap, frames: tuple[DepthFrame, ...], t0: float, t1: float) -> None:
         """Record an integration (benchmarks): its frames, wall span, and the EDF an isolated map built after it."""
@@ -646,6 +674,7 @@ class ClosedLoop:
     def control(self, state: RobotState) -> None:
         """Sequencer → references → HTMPC; the plan becomes active after the modelled actuation delay."""
         t0 = time.perf_counter()
+        self._map_news = False  # this step plans on the map as it is now
         with self.step_lock:
             with self.lock:
                 if self.run_state != RunState.RUNNING:
@@ -768,13 +797,15 @@ class ClosedLoop:
 
     # --- lockstep ------------------------------------------------------------------------------------
 
-    def tick(self, dt_s: float, control: bool, after_control: Callable[[], None] | None = None) -> np.ndarray:
-        """One command period: observe → map → control (when `control`) → command → measure.
+    def tick(self, dt_s: float, control: bool, after_control: Callable[[], None] | None = None) -> bool:
+        """One command period: observe → map → control (when `control` is due, or the map's new frames trigger
+        it: `control_triggered`) → command → measure; whether a control step ran.
 
         Every stage is guarded: an exception faults the run and the remaining stages still run, so the
         braking command goes out. `after_control` runs after the control stage (not guarded)."""
         state = self.guarded("observe", self.observe, dt_s) or self.advance_clock(dt_s)
         self.guarded("mapping", self.integrate_frames, state.t)
+        control = control or self.control_triggered(state.t)
         if control:
             self.guarded("control", self.control, state)
             if after_control is not None:
@@ -783,4 +814,4 @@ class ClosedLoop:
         qdot = np.zeros(NQ) if qdot is None else qdot
         if control:
             self.guarded("measure", self.measure, qdot)
-        return qdot
+        return control

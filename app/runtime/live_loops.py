@@ -6,7 +6,8 @@
 - io: observe + command at the command rate (100 Hz), deadline-paced so the rate holds on average;
 - mapping: integrate depth frames as they arrive (only the newest of each camera when behind), the object
   and voxel maps in a process of their own (`app/runtime/map_process.py`: mapping held the GIL these loops need);
-- control: one control step (and a run-log row) per control period of robot time, woken by the io loop;
+- control: one control step (and a run-log row) per control period of robot time, woken by the io loop, and
+  (`HTMPCParams.control_on_new_map`) by the mapping loop as soon as the map has taken a new frame;
 - publish: a snapshot to the subscribers at `publish_hz`;
 - watchdog: every loop must keep beating; a dead or stalled loop is a fault.
 
@@ -241,13 +242,15 @@ class LiveLoops:
     def _io_tick(self) -> None:
         dt_robot = self._io_period() * self._speed()
         state = self.loop.guarded("io loop: observe", self.loop.observe, dt_robot) or self.loop.advance_clock(dt_robot)
-        if state.t + 1e-9 >= self._next_control_t:
+        if state.t + 1e-9 >= self._next_control_t or self.loop.control_triggered(state.t):
             self._control_due.set()
         self.loop.command(state.t)
 
     def _map_tick(self) -> None:
         if self.loop.wait_for_frames(MAP_WAIT_S):
             self.loop.integrate_frames(self.loop.state.t + self.loop.config.perception_delay_s)
+            if self.loop.control_triggered(self.loop.state.t):
+                self._control_due.set()
 
     def _control_tick(self) -> None:
         self._control_due.wait(0.05)
@@ -255,7 +258,9 @@ class LiveLoops:
         state = self.loop.state
         due = self._next_control_t
         if state.t + 1e-9 < due:
-            return
+            if not self.loop.control_triggered(state.t):
+                return
+            due = state.t  # a step on the new map, and the period starts from it
         late = state.t - due > self.control_period_s
         self._next_control_t = state.t + self.control_period_s if late else due + self.control_period_s
         self.control_steps += 1

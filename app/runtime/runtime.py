@@ -388,15 +388,18 @@ class Runtime:
         loop.controller.enforce_timeout = False  # simulated time waits for the solver
         t_end = self.time + max_duration_s
         k, fault_ticks = 0, 0
+        next_control_k, control_steps = 0, 0
+        """The command tick the next periodic control step is due at; control steps so far."""
 
         def after_control() -> None:
             if on_control is not None:
                 on_control(self)
-            if publish_every and (k // per_control) % publish_every == 0:
+            if publish_every and control_steps % publish_every == 0:
                 self.publish()
 
         while self.time < t_end - 1e-9:
-            loop.tick(dt_cmd, k % per_control == 0, after_control)
+            if loop.tick(dt_cmd, k >= next_control_k, after_control):
+                next_control_k, control_steps = k + per_control, control_steps + 1  # a triggered step restarts it
             loop.guarded("physics", backend.step, dt_cmd)
             k += 1
             if loop.fault_reason is not None:

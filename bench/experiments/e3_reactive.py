@@ -8,9 +8,12 @@ grows obstacles by the base's footprint (its circumscribed radius, 0.62 m). The 
 front of it (`on_control` moves a parked box there right after a control step: a push too fast for any
 sensor to see coming, seen at the next step at the earliest).
 
-Two maps: the perceived object-level map with a modelled closed-loop delay of 0.5 s (perception
+Three conditions: the perceived object-level map with a modelled closed-loop delay of 0.5 s (perception
 0.45 s: camera 0.13 + mapping 0.35 on the paper's robot; actuation 0.05 s, the paper's 0.03 s solve
-rounded up), and the simulator's ground truth with no delay (what the controller alone can do).
+rounded up) and the paper's periodic 10 Hz control step; the simulator's ground truth with no delay (what the
+controller alone can do); and the perceived map at our own latency: the processing delay measured live
+(`OWN_PROCESSING_S`, `processing_ms_p95`), the camera's own frame period and latency, and a control step on each
+new map (`HTMPCParams.control_on_new_map`), with more random trials (`OWN_TRIALS`).
 
 1. Distance-to-collision sweep: once the robot cruises (x ≥ 3 m), one box appears straight ahead with
    its near face at a chosen distance d from the body under test: a floor box for the base, a box
@@ -21,15 +24,16 @@ rounded up), and the simulator's ground truth with no delay (what the controller
    distance 0.6–2.0 m ahead of the base, lateral offset ±0.5 m, random yaw), over seeded trials.
    Every push is also classified: could any base have avoided it, braking at 2 m/s² or sidestepping
    at 2 m/s² (or both) after the closed-loop delay plus one control period (0.6 s perceived, 0.1 s
-   ground truth), from its speed at the push (`avoidability.py`)? At 1 m/s that needs 0.85 m ahead
-   to brake on the perceived map: 18 % of the pushes land closer.
+   ground truth; at our own latency the processing delay plus one camera frame and its latency), from
+   its speed at the push (`avoidability.py`)? At 1 m/s that needs 0.85 m ahead to brake on the
+   perceived map with the paper's delay: 18 % of the pushes land closer.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -75,8 +79,37 @@ PARK = (-20.0, 20.0)
 """Boxes wait here (far outside every camera's range and the planner's grid) until pushed."""
 EE_BOX_BOTTOM_M = 0.65
 """The EE test box floats with its bottom here: above the base body (0.32 m) and its rack's front."""
-DELAYS = {"object": (0.45, 0.05), "ground_truth": (0.0, 0.0)}
-"""(perception, actuation) delay per map (s): 0.5 s closed loop as on the paper's robot; none for the truth."""
+OWN_PROCESSING_S = 0.115
+"""Our own processing delay from a frame's stamp to the command (s): `processing_ms_p95` measured live by
+`python -m bench.closed_loop --reaction-only` at the product's rates (docs/decisions.md, "Control on a new map")."""
+
+
+@dataclass(frozen=True)
+class Condition:
+    """How a trial's robot perceives and reacts."""
+
+    map_kind: str
+    perception_s: float
+    """Modelled delay from a frame's stamp to the map (s)."""
+    actuation_s: float
+    """Modelled delay from a solved plan to its commands (s)."""
+    on_new_map: bool
+    """A control step as soon as the map has a new frame (`HTMPCParams.control_on_new_map`), else the paper's
+    periodic 10 Hz step only."""
+    label: str
+
+
+CONDITIONS = {
+    "object": Condition("object", 0.45, 0.05, False, "perceived, 0.5 s delay"),
+    "ground_truth": Condition("ground_truth", 0.0, 0.0, False, "ground truth, no delay"),
+    "object_own_latency": Condition("object", OWN_PROCESSING_S, 0.0, True, "perceived, our own latency"),
+}
+"""The paper's 0.5 s closed loop (perception 0.45 s, actuation 0.05 s) on the perceived map; the controller alone on
+the truth; and the perceived map at our measured latency, a control step on each new map."""
+DELAYS = {name: (c.perception_s, c.actuation_s) for name, c in CONDITIONS.items()}
+"""(perception, actuation) delay per condition (s)."""
+OWN_TRIALS = 40
+"""Random-push trials per box count at our own latency (the issue asks for >= 40)."""
 SWEEP_M = tuple(round(0.1 * k, 1) for k in range(1, 21))
 RANDOM_TRIALS = 15
 PUSH_DISTANCE_M = (0.6, 2.0)
@@ -85,22 +118,22 @@ PAPER = {"ee_min_avoided_m": 0.6, "base_min_avoided_m": 1.48, "bound_m": 0.5, "c
          "collision_free_five": 0.60}
 
 
-def _config(map_kind: str, seed: int):
-    perception, actuation = DELAYS[map_kind]
-    return runtime_config(map_kind=map_kind, seed=seed, perception_delay_s=perception,
-                          actuation_delay_s=actuation,
-                          htmpc=replace(tunables().htmpc, constraint="cbf", gamma=GAMMA,
-                                        delta_safe_m=DELTA_M),
+def _config(condition: str, seed: int):
+    c = CONDITIONS[condition]
+    return runtime_config(map_kind=c.map_kind, seed=seed, perception_delay_s=c.perception_s,
+                          actuation_delay_s=c.actuation_s,
+                          htmpc=replace(tunables().htmpc, constraint="cbf", gamma=GAMMA, delta_safe_m=DELTA_M,
+                                        control_on_new_map=c.on_new_map),
                           sequencer=replace(tunables().sequencer, nominal_speed_mps=SPEED_MPS,
                                             inflation_m=tunables().robot.footprint_radius_m))
 
 
-def _runtime(map_kind: str, n_boxes: int, seed: int, floating: bool = False) -> Runtime:
+def _runtime(condition: str, n_boxes: int, seed: int, floating: bool = False) -> Runtime:
     z = EE_BOX_BOTTOM_M + PAPER_BOX_M / 2 if floating else PAPER_BOX_M / 2
     boxes = tuple(Box(f"push_{i}", (PARK[0] + 2.0 * i, PARK[1], z)) for i in range(n_boxes))
     seq = TaskSequence(name="straight run", subtasks=[
         BaseSubtask(name="drive", target=BasePose(x=GOAL_X_M, y=0.0, yaw_deg=0.0), timeout_s=40.0)])
-    return Runtime(_config(map_kind, seed), scene=Scene(boxes, robot_start=(START_X_M, 0.0, 0.0),
+    return Runtime(_config(condition, seed), scene=Scene(boxes, robot_start=(START_X_M, 0.0, 0.0),
                                                            name="reactive"),
                    sequence=seq)
 
@@ -125,13 +158,24 @@ def push_geometry(rt: Runtime, box_id: str) -> Push:
     return Push(c * dx + s * dy, -s * dx + c * dy, box.yaw - q[2], (box.size[0], box.size[1]))
 
 
-def physically_avoidable(rt: Runtime, push: Push, map_kind: str) -> list[str]:
+def reaction_delay_s(condition: str, rt: Runtime) -> float:
+    """The longest time from a push to the first plan that can see it (s): the closed-loop delay plus one control
+    period (the push falls right after a step); with a step on each new map, one base camera frame period plus
+    the camera's latency instead of the control period."""
+    c = CONDITIONS[condition]
+    if not c.on_new_map:
+        return c.perception_s + c.actuation_s + 1.0 / rt.controller.params.control_rate_hz
+    camera = rt.config.sim.base_camera.rate_hz
+    return c.perception_s + c.actuation_s + 1.0 / camera + rt.closed_loop.camera_latency_s()
+
+
+def physically_avoidable(rt: Runtime, push: Push, condition: str) -> list[str]:
     """The extreme manoeuvres (`avoidability.py`) that avoid the pushed box, from the base's speed now and
-    the closed-loop delay of this map (plus one control period: the push falls right after a step)."""
+    the condition's reaction delay (`reaction_delay_s`)."""
     robot = rt.robot.params
     body = rt.robot.boxes[0]
     speed = float(np.hypot(*rt.state.v[:2]))
-    delay = sum(DELAYS[map_kind]) + 1.0 / rt.controller.params.control_rate_hz
+    delay = reaction_delay_s(condition, rt)
     return avoidable_by(push, (body.half_m[0], body.half_m[1]), speed, delay, robot.base_accel_mps2,
                         robot.base_speed_mps)
 
@@ -256,7 +300,22 @@ def summarise(results: list[dict]) -> dict[str, float]:
     delay = sum(DELAYS["object"])
     figures["stop_distance_no_delay_m"] = SPEED_MPS ** 2 / (2 * robot.base_accel_mps2)
     figures["stop_distance_with_delay_m"] = SPEED_MPS * delay + figures["stop_distance_no_delay_m"]
-    return figures | solver_figures(results)
+    return figures | own_latency_figures(figures) | solver_figures(results)
+
+
+def own_latency_figures(figures: dict[str, float]) -> dict[str, float]:
+    """The own-latency condition's figures under the issue's names, and its braking bound at 1 m/s: the stop
+    distance plus the distance driven during the delay and one control period."""
+    own = "object_own_latency"
+    out = {f"object_{k}_own_latency": figures[f"{own}_{k}"] for k in ("collision_free_two", "collision_free_five")
+           if f"{own}_{k}" in figures}
+    for body in ("base", "ee"):
+        if f"{own}_{body}_min_avoided_m" in figures:
+            out[f"object_{body}_min_avoided_own_latency_m"] = figures[f"{own}_{body}_min_avoided_m"]
+    period = 1.0 / tunables().htmpc.control_rate_hz
+    out["braking_bound_own_latency_m"] = (figures["stop_distance_no_delay_m"]
+                                          + SPEED_MPS * (OWN_PROCESSING_S + period))
+    return out
 
 
 def figures_png(results: list[dict], out_dir: Path) -> list[str]:
@@ -265,7 +324,7 @@ def figures_png(results: list[dict], out_dir: Path) -> list[str]:
     sweep = [r for r in results if r["part"] == "sweep"]
     fig, axes = plt.subplots(1, 2, figsize=(12, 4), sharey=True)
     for ax, body in zip(axes, ("base", "ee"), strict=True):
-        for m, colour in (("object", "tab:blue"), ("ground_truth", "tab:green")):
+        for m, colour in (("object", "tab:blue"), ("ground_truth", "tab:green"), ("object_own_latency", "tab:orange")):
             rows = sorted((r for r in sweep if r["body"] == body and r["map"] == m), key=lambda r: r["d"])
             if not rows:
                 continue
@@ -274,7 +333,7 @@ def figures_png(results: list[dict], out_dir: Path) -> list[str]:
             ax.plot(d, clear, "-", color=colour, alpha=0.5)
             for r, x, y in zip(rows, d, clear, strict=True):
                 ax.plot(x, y, "o" if r.get("collision_free") else "x", color=colour, ms=7,
-                        label=f"{m} ({'0.5 s delay' if m == 'object' else 'no delay'})" if r is rows[0] else None)
+                        label=CONDITIONS[m].label if r is rows[0] else None)
             ax.axvline(PAPER[f"{body}_min_avoided_m"], color="k", ls=":", lw=1)
         ax.axhline(0.0, color="k", lw=0.5)
         ax.set_title(f"{body.upper()}: box appears ahead (o avoided, x collided; dotted: paper)")
@@ -291,7 +350,7 @@ def figures_png(results: list[dict], out_dir: Path) -> list[str]:
             for n in (2, 5):
                 rows = [r for r in rnd if r["map"] == m and r["n"] == n]
                 if rows:
-                    labels.append(f"{'perceived' if m == 'object' else 'GT'}\n{n} boxes")
+                    labels.append(f"{CONDITIONS[m].label}\n{n} boxes")
                     ours.append(rate(rows, "collision_free"))
         x = np.arange(len(labels))
         ax.bar(x, ours, 0.6, color="tab:blue", label="ours (simulation)")
@@ -328,8 +387,9 @@ def colliding_table(results: list[dict]) -> str:
                          ", ".join(ways) if ways else "no", "hit" if p.get("collided") else ""])
     if not rows:
         return "No random trial collided."
-    note = ("Avoidable: the extreme manoeuvres (full braking, full sidestep, or both, after the map's closed-loop "
-            "delay plus one control period) that would have kept the base's footprint clear of the box.")
+    note = ("Avoidable: the extreme manoeuvres (full braking, full sidestep, or both, after the condition's reaction "
+            "delay: the closed-loop delay plus one control period; at our own latency, plus one base camera frame "
+            "and its latency instead) that would have kept the base's footprint clear of the box.")
     return note + "\n\n" + md_table(["map", "boxes", "seed", "push", "distance at push (m)", "lateral (m)",
                                       "yaw (°)", "speed (m/s)", "physically avoidable by", "collided"], rows)
 
@@ -340,18 +400,25 @@ def report(results: list[dict], figures: dict[str, float], pngs: list[str], out_
     for body in ("ee", "base"):
         rows.append([f"smallest distance-to-collision avoided, {body.upper()} (m)", PAPER[f"{body}_min_avoided_m"],
                      f.get(f"object_{body}_min_avoided_m"), f.get(f"object_{body}_max_collided_m"),
+                     f.get(f"object_own_latency_{body}_min_avoided_m"),
+                     f.get(f"object_own_latency_{body}_max_collided_m"),
                      f.get(f"ground_truth_{body}_min_avoided_m"), f.get(f"ground_truth_{body}_max_collided_m")])
     for word in ("two", "five"):
         rows.append([f"collision-free rate, {word} boxes", PAPER[f"collision_free_{word}"],
-                     f.get(f"object_collision_free_{word}"), None, f.get(f"ground_truth_collision_free_{word}"), None])
+                     f.get(f"object_collision_free_{word}"), None, f.get(f"object_own_latency_collision_free_{word}"),
+                     None, f.get(f"ground_truth_collision_free_{word}"), None])
     for word in ("two", "five"):
         rows.append([f"… {word} boxes, trials whose every push braking or a sidestep could physically avoid",
-                     None, _rate_of(f, f"object_{word}"), None, _rate_of(f, f"ground_truth_{word}"), None])
+                     None, _rate_of(f, f"object_{word}"), None, _rate_of(f, f"object_own_latency_{word}"), None,
+                     _rate_of(f, f"ground_truth_{word}"), None])
     table = md_table(["figure", "paper (real robot)", "ours perceived, 0.5 s delay", "largest d that collided",
+                      f"ours perceived, own latency ({OWN_PROCESSING_S:g} s)", "largest d that collided",
                       "ours ground truth, no delay", "largest d that collided"], rows)
     bound = (f"Stopping distance at 1 m/s with the base's 2 m/s² deceleration: "
              f"{fmt(f['stop_distance_no_delay_m'])} m without delay, {fmt(f['stop_distance_with_delay_m'])} m with "
-             f"the 0.5 s closed-loop delay (paper's theoretical bound: about {PAPER['bound_m']} m).")
+             f"the 0.5 s closed-loop delay (paper's theoretical bound: about {PAPER['bound_m']} m); at our own latency "
+             f"({OWN_PROCESSING_S:g} s processing plus one control period) "
+             f"{fmt(f.get('braking_bound_own_latency_m'))} m.")
     sweep = md_table(["map", "body", "d asked (m)", "true distance at push (m)", "speed at push (m/s)",
                       "collision-free", "min clearance after (m)", "base contacts", "arm contacts"],
                      [[r["map"], r["body"], r["d"], r.get("distance_at_push_m"), r.get("speed_at_push_mps"),
@@ -373,13 +440,19 @@ def report(results: list[dict], figures: dict[str, float], pngs: list[str], out_
 
 def build_trials(quick: bool) -> list[Trial]:
     distances = (0.5, 1.5) if quick else SWEEP_M
-    maps = ("object",) if quick else tuple(DELAYS)
+    maps = ("object", "object_own_latency") if quick else tuple(CONDITIONS)
     sweep = [Trial(sweep_trial, {"part": "sweep", "map": m, "body": b, "d": d, "seed": 0})
              for m in maps for b in ("base", "ee") for d in distances]
-    n_random = 1 if quick else RANDOM_TRIALS
     rnd = [Trial(random_trial, {"part": "random", "map": m, "n": n, "seed": s})
-           for m in maps for n in (2, 5) for s in range(n_random)]
+           for m in maps for n in (2, 5) for s in range(random_trials(m, quick))]
     return sweep + rnd
+
+
+def random_trials(condition: str, quick: bool) -> int:
+    """Random-push trials per box count: the paper's conditions as before, ours at `OWN_TRIALS`."""
+    if quick:
+        return 1
+    return OWN_TRIALS if CONDITIONS[condition].on_new_map else RANDOM_TRIALS
 
 
 def main(argv: list[str] | None = None) -> dict[str, float]:
@@ -388,6 +461,7 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     results = trial_results(args, NAME, build_trials(args.quick), "E3 pushes")
     figures = summarise(results)
     settings = {"speed_mps": SPEED_MPS, "gamma": GAMMA, "delta_m": DELTA_M, "delays_s": DELAYS,
+                "control_on_new_map": {k: c.on_new_map for k, c in CONDITIONS.items()}, "own_trials": OWN_TRIALS,
                 "sweep_m": list(SWEEP_M), "random_trials": RANDOM_TRIALS, "push_distance_m": PUSH_DISTANCE_M,
                 "push_lateral_m": PUSH_LATERAL_M, "paper": PAPER}
     return finish_experiment(args, NAME, results, figures, settings, lambda out: figures_png(results, out),

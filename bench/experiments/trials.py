@@ -32,6 +32,7 @@ from pathlib import Path
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
 import core.sim  # noqa: F401  (chooses the GL backend once; spawned workers inherit MUJOCO_GL)
+from core.params import HTMPCParams
 from core.params_file import Tunables, load_params
 from core.yaml_validation import FileFormatError
 
@@ -55,7 +56,10 @@ class Trial:
     tunables: Tunables | None = None
 
 
-_tunables = Tunables()
+PAPER_TUNABLES = Tunables(htmpc=replace(HTMPCParams(), control_on_new_map=False))
+"""The experiments' defaults: the paper's periodic 10 Hz control step (a step on each new map is our addition,
+`HTMPCParams.control_on_new_map`); a `--params` file's values go over these."""
+_tunables = PAPER_TUNABLES
 
 
 def tunables() -> Tunables:
@@ -89,7 +93,7 @@ def experiment_args(name: str, description: str, argv: list[str] | None = None,
     if args.workers < 1:
         parser.error("--workers must be at least 1")
     try:
-        args.tunables = load_params(args.params) if args.params else None
+        args.tunables = load_params(args.params, PAPER_TUNABLES) if args.params else None
     except FileFormatError as err:
         parser.error(str(err))
     _use(args.tunables)  # in force here too (summaries), and shipped with each trial to the workers
@@ -98,7 +102,7 @@ def experiment_args(name: str, description: str, argv: list[str] | None = None,
 
 def _use(tuned: Tunables | None) -> None:
     global _tunables
-    _tunables = tuned or Tunables()
+    _tunables = tuned or PAPER_TUNABLES
 
 
 QUIET_LOGGERS = ("core.htmpc", "tasks.sequencer", "app.runtime")
