@@ -23,7 +23,7 @@ from app.runtime import Runtime, RuntimeConfig
 from app.runtime.snapshot import RunState
 from bench.bridge_driving import drive
 from bench.reaction import ReactionRun, measure_reactions
-from bench.reaction_chain import PARTS
+from bench.reaction_chain import PARTS, Reaction
 from bench.report import percentile, write_result
 from core.params import MappingParams
 from core.scene import PAPER_BOX_M, Box, Scene, random_scene
@@ -96,7 +96,7 @@ REACTION_EVENTS = {True: 10, False: 100}
 """Reactions measured in a quick and a full run."""
 
 
-def reaction_figures(run: ReactionRun) -> dict[str, float]:
+def reaction_figures(run: ReactionRun[Reaction]) -> dict[str, float]:
     """Reaction to a box put in the robot's way, live (bench/reaction.py): the whole, its parts (p50 and p95),
     the part after the frame's stamp, and the same reaction in simulated time."""
     total = [r.total_ms for r in run.reactions]

@@ -15,7 +15,9 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Generic, TypeVar
 
 import numpy as np
 
@@ -24,6 +26,8 @@ from app.runtime.stage_stamps import StageStamps
 from bench.experiments.measures import body_distance, body_reach_m
 from bench.reaction_chain import Placement, Reaction, analyse
 from core.scene import PAPER_BOX_M, Box, Scene
+from core.sim.world import SimWorld
+from core.types import RobotBackend, RobotState
 from tasks import BasePose, BaseSubtask, Subtask, TaskSequence
 
 log = logging.getLogger(__name__)
@@ -41,13 +45,16 @@ FORGET_S = 0.8
 LEGS = 400
 
 
+R = TypeVar("R")
+
+
 @dataclass
-class ReactionRun:
+class ReactionRun(Generic[R]):
     """The reactions measured (with their placements), the placements that gave none (with why), and the stamps
     they were read from (the latest `keep_s` of them)."""
 
     stamps: StageStamps
-    events: list[tuple[Placement, Reaction]] = field(default_factory=list)
+    events: list[tuple[Placement, R]] = field(default_factory=list)
     rejected: list[str] = field(default_factory=list)
     constrained: int = 0
     """Placements whose barrier h was below v / gamma when the box appeared."""
@@ -56,8 +63,22 @@ class ReactionRun:
     """How the live loops kept time meanwhile (`loop_health`)."""
 
     @property
-    def reactions(self) -> list[Reaction]:
+    def reactions(self) -> list[R]:
         return [reaction for _, reaction in self.events]
+
+    def trial(self, placement: Placement, gamma: float, react: Callable[[Placement], R | str],
+              park: Callable[[], object]) -> None:
+        """One placement: its reaction read (or why none), the box parked, time for the map to forget it."""
+        self.placements += 1
+        self.constrained += int(placement.h_m < placement.v_before_mps / gamma)
+        result = react(placement)
+        park()
+        if isinstance(result, str):
+            self.rejected.append(result)
+            log.info("placement %d: %s", self.placements, result)
+        else:
+            self.events.append((placement, result))
+        time.sleep(FORGET_S)
 
 
 def shuttle() -> TaskSequence:
@@ -68,36 +89,52 @@ def shuttle() -> TaskSequence:
     return TaskSequence(name="shuttle", subtasks=legs)
 
 
-def reaction_runtime(config: RuntimeConfig | None = None) -> Runtime:
-    """The shuttle on an empty floor with one parked box, references at `SPEED_MPS`."""
+def reaction_scene() -> Scene:
+    """An empty floor with one parked box, the robot at the start of the line."""
+    return Scene((Box("probe", PARK),), robot_start=(-LINE_X_M, 0.0, 0.0), name="reaction")
+
+
+def reaction_runtime(config: RuntimeConfig | None = None, backend: RobotBackend | None = None) -> Runtime:
+    """The shuttle, references at `SPEED_MPS`: on `reaction_scene` simulated here, or driving `backend` (a
+    robot behind the bridge, whose driver simulates that scene)."""
     config = config or RuntimeConfig(map_kind="object")
     config = replace(config, sequencer=replace(config.sequencer, nominal_speed_mps=SPEED_MPS))
-    scene = Scene((Box("probe", PARK),), robot_start=(-LINE_X_M, 0.0, 0.0), name="reaction")
-    return Runtime(config, scene=scene, sequence=shuttle())
+    if backend is not None:
+        return Runtime(config, sequence=shuttle(), backend=backend)
+    return Runtime(config, scene=reaction_scene(), sequence=shuttle())
 
 
 def cruising(rt: Runtime) -> bool:
-    """Driving along its heading at speed, with room ahead before the end of the line."""
-    state = rt.require_world().state()
+    """Driving along its heading at speed, with room ahead before the end of the line (the true state)."""
+    return cruising_at(rt.require_world().state())
+
+
+def cruising_at(state: RobotState) -> bool:
+    """Whether `state` drives along its heading at `CRUISE_MPS` or more, `ROOM_M` or more before the line's end."""
     q, v = state.q, state.v
     heading = np.array([math.cos(q[2]), math.sin(q[2])])
     ahead_x = LINE_X_M - q[0] if heading[0] > 0 else q[0] + LINE_X_M
     return float(v[:2] @ heading) >= CRUISE_MPS and abs(heading[0]) > 0.98 and ahead_x >= ROOM_M
 
 
-def place(rt: Runtime, stamps: StageStamps) -> Placement:
-    """The box straight ahead, its near face `GAP_M` beyond the base's front; the placement as it happened, in the
-    world the robot believes in (its odometry drifts: the map, the EDF, the frames and the commands are all there)."""
-    world = rt.require_world()
-    with world.lock:  # no physics step between the edit and reading its time
-        q = world.state().q
-        believed = rt.state.q  # the loop's estimate, at most one I/O period (10 ms) older
-        heading = np.array([math.cos(q[2]), math.sin(q[2])])
-        reach = body_reach_m(world, "base", q)
-        centre = q[:2] + heading * (reach + GAP_M + PAPER_BOX_M / 2)
-        rt.move_box("probe", (float(centre[0]), float(centre[1]), PARK[2]), float(q[2]))
-        t, wall = world.time, stamps.now()
-        h = body_distance(world, "base", (world.box("probe"),)) - rt.controller.params.delta_safe_m
+@dataclass(frozen=True)
+class BoxAhead:
+    """Where the box goes: its centre and yaw in the true world, points on it, the point of its face towards the
+    robot and the unit direction from the base to it, in the world the robot believes in."""
+
+    centre: tuple[float, float, float]
+    yaw: float
+    points: np.ndarray
+    face: np.ndarray
+    towards: np.ndarray
+
+
+def box_ahead(world: SimWorld, q: np.ndarray, believed: np.ndarray) -> BoxAhead:
+    """The box straight ahead of the base at true pose `q`, its near face `GAP_M` beyond the base's front, seen
+    from the believed pose `believed` (odometry drifts: the map, the EDF, the frames and the commands are all in
+    the believed world)."""
+    heading = np.array([math.cos(q[2]), math.sin(q[2])])
+    centre = q[:2] + heading * (body_reach_m(world, "base", q) + GAP_M + PAPER_BOX_M / 2)
     to_believed = believed_frame(q, believed)
     axes = np.array([[heading[0], heading[1], 0.0], [-heading[1], heading[0], 0.0], [0.0, 0.0, 1.0]])
     signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)
@@ -105,9 +142,26 @@ def place(rt: Runtime, stamps: StageStamps) -> Placement:
     points = to_believed(np.vstack([centre3, centre3 + PAPER_BOX_M / 2 * signs @ axes,
                                     centre3 - axes[0] * PAPER_BOX_M / 2]))
     towards = to_believed(np.array([[*heading, 0.0]]), rotate_only=True)[0, :2]
+    return BoxAhead((float(centre[0]), float(centre[1]), PARK[2]), float(q[2]), points[:-1], points[-1], towards)
+
+
+def velocity_before(stamps: StageStamps, wall: float, towards: np.ndarray) -> float:
+    """The base velocity towards the box of the last command before `wall` (NaN: none)."""
     before = [c for c in list(stamps.commands) if c.wall <= wall]
-    v_before = float(np.dot(before[-1].base_v, towards)) if before else float("nan")
-    return Placement(wall, t, points[:-1], points[-1], towards, v_before, h)
+    return float(np.dot(before[-1].base_v, towards)) if before else float("nan")
+
+
+def place(rt: Runtime, stamps: StageStamps) -> Placement:
+    """The box straight ahead (`box_ahead`), the placement as it happened, in the world the robot believes in."""
+    world = rt.require_world()
+    with world.lock:  # no physics step between the edit and reading its time
+        q = world.state().q
+        ahead = box_ahead(world, q, rt.state.q)  # the loop's estimate, at most one I/O period (10 ms) older
+        rt.move_box("probe", ahead.centre, ahead.yaw)
+        t, wall = world.time, stamps.now()
+        h = body_distance(world, "base", (world.box("probe"),)) - rt.controller.params.delta_safe_m
+    return Placement(wall, t, ahead.points, ahead.face, ahead.towards,
+                     velocity_before(stamps, wall, ahead.towards), h)
 
 
 def believed_frame(true_q: np.ndarray, believed_q: np.ndarray):
@@ -137,13 +191,13 @@ def await_reaction(rt: Runtime, stamps: StageStamps, placement: Placement) -> Re
 
 
 def measure_reactions(events: int, max_wall_s: float, config: RuntimeConfig | None = None,
-                      keep_s: float = 30.0) -> ReactionRun:
+                      keep_s: float = 30.0) -> ReactionRun[Reaction]:
     """Live: place boxes until `events` reactions are measured (or `max_wall_s` has passed); the stamps of the
     last `keep_s` are kept."""
     rt = reaction_runtime(config)
     stamps = StageStamps(keep_s)
     rt.closed_loop.stamps = stamps
-    run = ReactionRun(stamps)
+    run: ReactionRun[Reaction] = ReactionRun(stamps)
     gamma = rt.controller.params.gamma
     rt.start_live()
     rt.start()
@@ -154,17 +208,8 @@ def measure_reactions(events: int, max_wall_s: float, config: RuntimeConfig | No
             if not cruising(rt) or not any(i.edf is not None for i in list(stamps.integrations)[-3:]):
                 time.sleep(0.02)
                 continue
-            placement = place(rt, stamps)
-            run.placements += 1
-            run.constrained += int(placement.h_m < placement.v_before_mps / gamma)
-            result = await_reaction(rt, stamps, placement)
-            rt.move_box("probe", PARK)
-            if isinstance(result, Reaction):
-                run.events.append((placement, result))
-            else:
-                run.rejected.append(result)
-                log.info("placement %d: %s", run.placements, result)
-            time.sleep(FORGET_S)
+            run.trial(place(rt, stamps), gamma, lambda p: await_reaction(rt, stamps, p),
+                      lambda: rt.move_box("probe", PARK))
         run.health = loop_health(rt, stamps, time.perf_counter() - start)
     finally:
         rt.shutdown()

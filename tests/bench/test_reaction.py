@@ -5,12 +5,12 @@ No timing thresholds: the benchmark measures speed."""
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from bench.reaction import measure_reactions
-from bench.reaction_chain import DROP_MPS, PARTS, Placement, Reaction
+from bench.reaction_chain import PARTS, Reaction
 from core.params import HTMPCParams, MappingParams
+from tests.bench.reaction_checks import first_slowed
 
 EVENTS = 3
 
@@ -20,20 +20,12 @@ def run():
     return measure_reactions(EVENTS, max_wall_s=120.0, keep_s=300.0)
 
 
-def _reacting(run, placement: Placement):
-    towards = np.asarray(placement.towards)
-    for command in run.stamps.commands:
-        if command.wall > placement.wall and np.dot(command.base_v, towards) <= placement.v_before_mps - DROP_MPS:
-            return command
-    raise AssertionError("no command slowed")
-
-
 def test_every_reaction_counted_is_one_to_the_box(run) -> None:
     assert len(run.events) == EVENTS
     gamma, voxel = HTMPCParams().gamma, MappingParams().edf_voxel_m
     for placement, reaction in run.events:
         assert placement.h_m < placement.v_before_mps / gamma  # the constraint had to act
-        command = _reacting(run, placement)
+        command = first_slowed(run.stamps, placement)
         assert reaction.total_ms == pytest.approx((command.wall - placement.wall) * 1e3)
         step = next(s for s in run.stamps.controls if s.plan is command.plan)
         assert step.wall_wake > placement.wall  # solved after the box appeared …

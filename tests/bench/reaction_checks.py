@@ -1,0 +1,18 @@
+"""Checks the reaction tests share (the embedded run and the run through the bridge), read again from the stamps
+independently of `bench/reaction_chain.py`."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from app.runtime.stage_stamps import CommandStamp, StageStamps
+from bench.reaction_chain import DROP_MPS, Placement
+
+
+def first_slowed(stamps: StageStamps, placement: Placement) -> CommandStamp:
+    """The first command after the placement slowed by `DROP_MPS` towards the box."""
+    towards = np.asarray(placement.towards)
+    for command in stamps.commands:
+        if command.wall > placement.wall and np.dot(command.base_v, towards) <= placement.v_before_mps - DROP_MPS:
+            return command
+    raise AssertionError("no command slowed")
