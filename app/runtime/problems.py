@@ -3,7 +3,7 @@
 The runtime records (`record(kind, t, message)`) from a few hook points: every controller step
 (`observe_plan`: QP failures, fallback plans, slow solves), a crashed loop (fault), the bridge's stale
 state, a live loop that missed its period (watchdog), unknown space slowing the base (one per episode,
-`app/unknown_ahead.py`). Each kind keeps its count, first and last time and
+`app/runtime/unknown_ahead.py`). Each kind keeps its count, first and last time and
 last message; the log is thread-safe (the loops and the bridge record from their own threads).
 """
 
