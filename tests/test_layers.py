@@ -38,6 +38,13 @@ NEVER = [
     ("app.ui", "core.htmpc", "the UI reads runtime snapshots only"),
     ("app.ui", "core.mapping", "the UI reads runtime snapshots only"),
     ("app.bridge", "app.ui", "the bridge works without a browser"),
+    ("app.runtime", "app.ui", "the runtime publishes snapshots; it knows no screen"),
+    ("app.runtime", "app.bridge", "the runtime drives any backend; it knows no server"),
+    ("app.runtime", "app.recording", "recordings subscribe to the runtime, never back"),
+    ("app.runtime", "app.cli", "the runtime knows no command line"),
+    ("app.runtime", "app.foxglove_live", "the Foxglove server subscribes to the runtime, never back"),
+    ("app.recording", "app.bridge", "recordings know no server"),
+    ("app.recording", "app.cli", "recordings know no command line"),
 ]
 """(importing module prefix, imported module prefix, why not); a prefix ending in '.' means any module
 below it."""
@@ -96,6 +103,22 @@ def test_no_import_crosses_a_layer(graph):
     assert not crossings, "\n".join(crossings)
 
 
+APP_MODULES_ALLOWED = {
+    "app.runtime": ("app.runtime", "app.map_kind", "app.object_names", "app.target_check", "app.thread_priority"),
+    "app.recording": ("app.recording", "app.runtime", "app.object_label", "app.ui.colors"),
+}
+"""docs/design.md's layer table: the only modules of `app/` that the runtime and the recordings import."""
+
+
+@pytest.mark.parametrize("package", sorted(APP_MODULES_ALLOWED))
+def test_the_runtime_and_recordings_import_only_the_app_modules_the_table_names(graph, package):
+    allowed = APP_MODULES_ALLOWED[package]
+    beyond = sorted(f"{module}:{line} imports {name}" for module, imports in graph.items() if _within(module, package)
+                    for line, name in imports
+                    if _within(name, "app") and not any(_within(name, prefix) for prefix in allowed))
+    assert not beyond, "\n".join(beyond)
+
+
 @pytest.mark.parametrize(("module", "name", "crosses"), [
     ("core.htmpc.htmpc", "core.mapping.local_edf", True),
     ("core.htmpc.htmpc", "core.robot.model", False),
@@ -104,6 +127,8 @@ def test_no_import_crosses_a_layer(graph):
     ("app.ui.map_view", "core.mapping", True),
     ("app.ui.map_view", "core.params.MappingParams", False),
     ("tasks.sequencer", "app.runtime", True),
+    ("app.runtime.closed_loop", "app.object_names.ObjectNames", False),
+    ("app.runtime.live_loops", "app.recording.recorder", True),
 ])
 def test_the_rules_tell_a_crossing_from_a_permitted_import(module, name, crosses):
     assert any(_within(module, src) and _within(name, dst) for src, dst, _ in NEVER) == crosses

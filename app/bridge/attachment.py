@@ -18,6 +18,7 @@ import time
 from typing import TYPE_CHECKING
 
 from app.runtime.snapshot import RunState, Snapshot
+from core.types import steps_in_lockstep
 
 if TYPE_CHECKING:
     from app.runtime import Runtime
@@ -59,8 +60,14 @@ class RuntimeAttachment:
 
     @property
     def simulates(self) -> bool:
-        """Whether the runtime runs the embedded simulation (scene edits, step and speed need it)."""
-        return self.runtime.world is not None
+        """Whether the backend is a simulation the runtime may edit (`BackendAbilities.simulated`: scene edits
+        and the ground-truth map need it)."""
+        return self.runtime.world is not None  # the runtime holds a world exactly when the backend declares one
+
+    @property
+    def steps(self) -> bool:
+        """Whether the runtime steps its backend (`BackendAbilities.steps_in_lockstep`: step and speed need it)."""
+        return steps_in_lockstep(self.runtime.backend)
 
     @property
     def running(self) -> bool:

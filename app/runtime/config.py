@@ -45,7 +45,7 @@ class RuntimeConfig:
     """Live mode: run the object and voxel maps in a process of their own (keeps the I/O loops on time)."""
     live_niceness: int | None = -10
     """Live mode: the niceness its threads ask for (lower runs first, as robot control stacks do; needs root
-    or CAP_SYS_NICE, else they stay at normal priority: `app/priority.py`); None leaves priorities alone."""
+    or CAP_SYS_NICE, else they stay at normal priority: `app/thread_priority.py`); None leaves priorities alone."""
     seed: int = 0
     htmpc: HTMPCParams = field(default_factory=HTMPCParams)
     mapping: MappingParams = field(default_factory=MappingParams)

@@ -64,8 +64,8 @@ router.post("/pause")(_command("pause", lambda rt: rt.pause(),
 @router.post("/step", responses=CONFLICT)
 def step(attached: Attached, body: Annotated[StepIn | None, Body()] = None) -> RunStatus:
     """While paused, advance the simulation by one control period (or `seconds`)."""
-    if not attached.simulates:
-        raise _conflict("step needs the embedded simulation")
+    if not attached.steps:
+        raise _conflict("step needs a backend the runtime steps (the embedded simulation)")
     if attached.runtime.run_state != RunState.PAUSED:
         raise _conflict("step works while paused")
     attached.runtime.step(None if body is None else body.seconds)
@@ -94,8 +94,10 @@ router.post("/emergency-stop")(_command("emergency_stop", lambda rt: rt.emergenc
 @router.post("/config", responses=CONFLICT)
 def configure(attached: Attached, body: ConfigIn) -> RunStatus:
     """Switch the map kind or constraint kind (takes effect now) or the live speed (simulation only)."""
-    if not attached.simulates and (body.speed is not None or body.map_kind == "ground_truth"):
-        raise _conflict("speed and the ground-truth map need the embedded simulation")
+    if body.speed is not None and not attached.steps:
+        raise _conflict("speed needs a backend the runtime steps (the embedded simulation)")
+    if body.map_kind == "ground_truth" and not attached.simulates:
+        raise _conflict("the ground-truth map needs the embedded simulation")
     if body.map_kind or body.constraint:
         attached.runtime.configure(map_kind=body.map_kind, constraint=body.constraint)
     if body.speed is not None:

@@ -9,7 +9,10 @@ import httpx
 import numpy as np
 import pytest
 
+from app.bridge.attachment import RuntimeAttachment
 from app.bridge.server import BridgeServer
+from app.runtime import Runtime, RuntimeConfig
+from core.sim.sim_robot import SimRobot
 from tests.app.bridge.conftest import BAD_SEQUENCE as BAD
 from tests.app.bridge.conftest import EXAMPLE_SEQUENCE as EXAMPLE
 from tests.app.bridge.conftest import StateStreamer, wait_until
@@ -95,9 +98,27 @@ def test_a_runtime_on_the_bridge_refuses_simulation_only_requests(api: httpx.Cli
                                                                   bridge_runtime) -> None:
     assert api.get("/api/scene").status_code == 409
     assert api.post("/api/scene/boxes", json={"id": "crate", "position": [3.0, 2.0, 0.3]}).status_code == 409
-    assert api.post("/api/run/config", json={"speed": 2.0}).status_code == 409
+    speed = api.post("/api/run/config", json={"speed": 2.0})
+    assert speed.status_code == 409 and "a backend the runtime steps" in speed.json()["detail"]
+    ground_truth = api.post("/api/run/config", json={"map_kind": "ground_truth"})
+    assert ground_truth.status_code == 409 and "ground-truth map" in ground_truth.json()["detail"]
     assert api.post("/api/run/pause").json()["run_state"] == "paused"
-    assert api.post("/api/run/step").status_code == 409
+    step = api.post("/api/run/step")
+    assert step.status_code == 409 and "a backend the runtime steps" in step.json()["detail"]
+
+
+def test_the_attachment_asks_the_backends_abilities(bridge: BridgeServer, sim_runtime) -> None:
+    """Step and speed follow `steps_in_lockstep`, scene edits and the ground-truth map `simulated`
+    (docs/design.md, "Writing a new backend"), never the backend's class."""
+    assert isinstance(sim_runtime.backend, SimRobot)
+    abilities = sim_runtime.backend.abilities
+    attached = RuntimeAttachment(sim_runtime)
+    assert (attached.steps, attached.simulates) == (abilities.steps_in_lockstep, abilities.simulated) == (True, True)
+    remote = RuntimeAttachment(Runtime(RuntimeConfig(map_process=False), backend=bridge.robot))
+    try:
+        assert (remote.steps, remote.simulates) == (False, False)
+    finally:
+        remote.runtime.shutdown()
 
 
 def test_start_needs_fresh_robot_state(api: httpx.Client, bridge: BridgeServer, bridge_runtime) -> None:

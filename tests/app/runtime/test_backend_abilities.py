@@ -93,7 +93,9 @@ def test_the_runtime_never_asks_which_backend_it_drives(tmp_path):
     assert _isinstance_on_a_backend_class(probe) == ["probe.py:1", "probe.py:2"]  # the check sees them
     files = sorted(RUNTIME_DIR.glob("*.py"))
     assert len(files) > 5
-    found = [hit for path in files for hit in _isinstance_on_a_backend_class(path)]
+    everywhere = sorted(RUNTIME_DIR.parent.rglob("*.py"))  # the UI, the bridge, recordings and the CLI ask too
+    assert len(everywhere) > 3 * len(files)
+    found = [hit for path in everywhere for hit in _isinstance_on_a_backend_class(path)]
     assert found == [], f"ask the backend's abilities instead: {found}"
     imports_bridge = [p.name for p in files if "app.bridge" in p.read_text(encoding="utf-8")]
     assert imports_bridge == [], "the runtime knows no bridge"
