@@ -344,13 +344,13 @@ def figures_png(results: list[dict], out_dir: Path) -> list[str]:
 
     rnd = [r for r in results if r["part"] == "random"]
     if rnd:
-        fig, ax = plt.subplots(figsize=(7, 4))
+        fig, ax = plt.subplots(figsize=(9, 4.5))
         labels, ours = [], []
         for m in DELAYS:
             for n in (2, 5):
                 rows = [r for r in rnd if r["map"] == m and r["n"] == n]
                 if rows:
-                    labels.append(f"{CONDITIONS[m].label}\n{n} boxes")
+                    labels.append(CONDITIONS[m].label.replace(", ", ",\n") + f"\n{n} boxes")
                     ours.append(rate(rows, "collision_free"))
         x = np.arange(len(labels))
         ax.bar(x, ours, 0.6, color="tab:blue", label="ours (simulation)")
