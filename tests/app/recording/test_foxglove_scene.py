@@ -4,6 +4,8 @@ or unknown objects are grey."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from mcap.records import Schema
 
@@ -31,10 +33,13 @@ def test_base_poses_the_snapshot_carries_become_frames_of_their_own() -> None:
     snap = Snapshot(seq=0, wall_time=0.0, state=RobotState(3.25, q, np.zeros(9)))
     plain = {t.child_frame_id for t in _decode("foxglove.FrameTransforms", transforms(robot, snap)).transforms}
     assert "base_estimated" not in plain and {"base", "wrist_3_link", "camera_base"} <= plain
-    object.__setattr__(snap, "base_estimate", np.array([1.1, 1.9, 0.45]))  # what localization will add
-    tf = _decode("foxglove.FrameTransforms", transforms(robot, snap)).transforms
+    assert "base_true" not in plain
+    localized = replace(snap, base_estimate=np.array([1.1, 1.9, 0.45]), base_true=np.array([1.2, 2.0, 0.5]))
+    tf = _decode("foxglove.FrameTransforms", transforms(robot, localized)).transforms
     estimated = next(t for t in tf if t.child_frame_id == "base_estimated")
     assert estimated.parent_frame_id == "world" and (estimated.translation.x, estimated.translation.y) == (1.1, 1.9)
+    true = next(t for t in tf if t.child_frame_id == "base_true")
+    assert true.parent_frame_id == "world" and (true.translation.x, true.translation.y) == (1.2, 2.0)
     assert tf[0].timestamp.seconds == 3 and tf[0].timestamp.nanos == 250_000_000
 
 
