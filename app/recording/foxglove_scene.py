@@ -8,7 +8,7 @@ carries (`SCHEMAS`), and the live server (`app.foxglove_live`) logs the same byt
 | `/tf` | `foxglove.FrameTransforms` | world → base (q[0:3]) → arm links, cameras; world → base_estimated, base_true |
 | `/robot/model` | `foxglove.SceneUpdate` | the robot: UR10 link meshes embedded (GLB), the base's boxes; re-sent |
 | `/scene/boxes` | `foxglove.SceneUpdate` | ground-truth boxes (metadata: id, yaw, dark) |
-| `/map/objects` | `foxglove.SceneUpdate` | mapped objects coloured by E[v] (green → red, removed grey), labelled |
+| `/map/objects` | `foxglove.SceneUpdate` | mapped objects coloured by E[v] (green → red, removed grey), '#id name' |
 | `/plan/paths` | `foxglove.SceneUpdate` | predicted base and EE paths, the planned base path, the targets |
 | `/map/points`, `/camera/clouds` | `foxglove.PointCloud` | map points, decimated depth points (world, float32 x y z) |
 | `/camera/<name>/depth` | `foxglove.RawImage` | depth in metres (32FC1, 0 = no return), frame `camera_<name>` |
@@ -20,7 +20,7 @@ late subscriber never sees stale boxes.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from functools import cache
 
 import foxglove
@@ -54,6 +54,7 @@ from foxglove.messages import (
 )
 from scipy.spatial.transform import Rotation
 
+from app.object_label import names_by_map_id, object_label
 from app.runtime.snapshot import Snapshot
 from app.runtime.target_marks import TargetMark
 from app.ui.colors import consistency_rgb
@@ -214,8 +215,11 @@ def boxes(t_s: float, scene_boxes: Iterable[Box]) -> bytes:
 _REMOVED_RGB = (140, 140, 140)
 
 
-def mapped_objects(t_s: float, object_map: ObjectMapSnapshot, theta_stat: float) -> bytes:
-    """Each mapped object as a box coloured by its consistency E[v] with a label `id E[v]`."""
+def mapped_objects(t_s: float, object_map: ObjectMapSnapshot, theta_stat: float,
+                   names: Mapping[int, str] | None = None) -> bytes:
+    """Each mapped object as a box coloured by its consistency E[v], labelled as the studio labels it ('#4', '#4
+    shelf' with the operator's name from `names`, by map id) and its E[v]."""
+    names = names or {}
     stamp = timestamp(t_s)
     entities = []
     poses = np.array([np.asarray(o.pose, float) for o in object_map.objects]).reshape(-1, 4, 4)
@@ -227,10 +231,11 @@ def mapped_objects(t_s: float, object_map: ObjectMapSnapshot, theta_stat: float)
         top = pose[:3, 3] + (0.0, 0.0, float(np.asarray(o.extent, float)[2]) / 2 + 0.15)
         entities.append(SceneEntity(
             timestamp=stamp, frame_id=WORLD, id=f"object/{o.id}",
-            metadata=[KeyValuePair(key="E[v]", value=f"{e_v:.3f}"), KeyValuePair(key="status", value=o.status.value)],
+            metadata=[KeyValuePair(key="E[v]", value=f"{e_v:.3f}"), KeyValuePair(key="status", value=o.status.value),
+                      KeyValuePair(key="name", value=names.get(o.id, ""))],
             cubes=[CubePrimitive(pose=_pose(pose[:3, 3], quaternion), size=_vec(o.extent), color=_color(rgb, 0.5))],
             texts=[TextPrimitive(pose=_pose(top), billboard=True, font_size=14.0, scale_invariant=True,
-                                 color=_color(rgb), text=f"{o.id} E[v]={e_v:.2f}")]))
+                                 color=_color(rgb), text=f"{object_label(o.id, names.get(o.id))} E[v]={e_v:.2f}")]))
     return _scene(entities)
 
 
@@ -316,7 +321,7 @@ def scene_messages(robot: RobotModel, snap: Snapshot, with_points: bool, with_mo
         out.append(("/robot/model", robot_model(robot, t)))
     out.append(("/scene/boxes", boxes(t, snap.boxes)))
     if snap.object_map is not None:
-        out.append(("/map/objects", mapped_objects(t, snap.object_map, theta_stat)))
+        out.append(("/map/objects", mapped_objects(t, snap.object_map, theta_stat, names_by_map_id(snap.anchors))))
     out.append(("/plan/paths", plan_paths(t, snap.plan, snap.base_path, getattr(snap, "targets", ()),
                                           snap.active_index)))
     if with_points and snap.map_points is not None:

@@ -10,7 +10,7 @@ Beside these, `app.recording.foxglove_scene` writes the Foxglove channels the 3D
 | `/robot/state` | `htmpc.RobotState` (t, q[9], v[9], base_estimate, base_true) | every snapshot |
 | `/robot/command` | `htmpc.JointVelocityCommand` (t, qdot[9], the last command sent) | when known |
 | `/plan` | `htmpc.Plan` (predicted q, v, u, Cartesian paths, task errors, solve times, status) | when a plan exists |
-| `/map/posterior` | `htmpc.ObjectMap` (`#id` label, pose, extent, E[v], posterior, status, last seen) | object map |
+| `/map/posterior` | `htmpc.ObjectMap` (`#id name` label, pose, extent, E[v], posterior, status, seen) | object map |
 | `/map/edf_slice` | `htmpc.EDFSlice` | when the controller has an EDF |
 | `/sequence/progress` | `htmpc.Progress` (subtasks, active index, planned base path) | every snapshot |
 | `/camera/<name>/info` | `htmpc.CameraInfo` (K, T_world_camera, range) | with each depth image |
@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from app.object_label import object_label
+from app.object_label import names_by_map_id, object_label
 from app.runtime.problems import ProblemCount, ProblemKind
 from app.runtime.snapshot import EDFSlice, RunState, Snapshot
 from core.scene import Box
@@ -177,11 +177,11 @@ def snapshot_messages(snap: Snapshot) -> list[tuple[str, dict]]:
                               "status": p.status.value, "message": p.message, "reason": p.reason.value,
                               "min_h": _num(p.min_h)}))
     if snap.object_map is not None:
-        m = snap.object_map
+        m, names = snap.object_map, names_by_map_id(snap.anchors)
         out.append(("/map/posterior", {"t": m.t, "removed_ids": list(m.removed_ids), "objects": [
             {"id": o.id, "pose": _list(o.pose), "extent": _list(o.extent), "status": o.status.value,
              "consistency": _num(o.consistency), "posterior": _record(o.posterior), "observations": o.observations,
-             "label": object_label(o.id), "last_seen_t": _num(o.last_seen_t)}
+             "label": object_label(o.id, names.get(o.id)), "last_seen_t": _num(o.last_seen_t)}
             for o in m.objects]}))
     if snap.edf_slice is not None:
         e = snap.edf_slice

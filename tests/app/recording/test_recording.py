@@ -121,7 +121,7 @@ def test_the_3d_channels_draw_the_robot_boxes_objects_and_paths(recorded) -> Non
     boxes = last["/scene/boxes"].entities  # type: ignore[attr-defined]
     assert [e.id for e in boxes] == ["box/a"] and boxes[0].cubes[0].size.x == pytest.approx(0.6)
     objects = last["/map/objects"].entities  # type: ignore[attr-defined]
-    assert objects and all(e.texts[0].text.split(" E[v]=")[0] == e.id.removeprefix("object/") for e in objects)
+    assert objects and all(e.texts[0].text.split(" E[v]=")[0] == "#" + e.id.removeprefix("object/") for e in objects)
     paths = {e.id for e in last["/plan/paths"].entities}  # type: ignore[attr-defined]
     assert {"plan/predicted_base", "plan/predicted_ee", "plan/planned_base"} <= paths
     assert any(p.startswith("target/0/") for p in paths)
