@@ -80,6 +80,7 @@ def test_every_message_decodes_with_the_schema_in_the_file(recorded) -> None:
     assert summary is not None and summary.statistics is not None
     assert summary.statistics.message_count == len(messages)
     assert summary.statistics.chunk_count in (rec.chunks, rec.chunks + 1) and rec.chunks > 3  # +1: closed by close()
+    assert len(rec.writes) == rec.chunks + 2 and all(b > 0 for _, b in rec.writes)  # + the header's and close()'s
     assert topics["/run/status"] == topics["/robot/state"] == topics["/tf"] == rec.count > 20
     assert topics["/plan"] > 20 and topics["/scene/boxes"] == topics["/plan/paths"] == rec.count
     assert topics["/map/points"] == (rec.count + 1) // 2 and topics["/camera/clouds"] >= topics["/map/points"] - 1
