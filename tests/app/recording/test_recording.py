@@ -313,3 +313,11 @@ def test_the_foxglove_layout_shows_what_a_recording_holds(recorded) -> None:
         topic = max((t for t in last if path == t or path.startswith(t + ".")), key=len)
         values = _resolve(last[topic], path[len(topic):])
         assert values and all(v is not None for v in values), path
+
+
+def test_the_readme_names_every_topic_a_recording_holds(recorded) -> None:
+    """README's topic list is complete: every topic of a recording (with depth frames) is named there."""
+    readme = (ROOT / "README.md").read_text()
+    topics = {re.sub(r"^/camera/[^/]+/", "/camera/<name>/", topic) for topic, *_ in _decoded(recorded[0])}
+    assert "/camera/<name>/depth" in topics
+    assert sorted(t for t in topics if f"`{t}`" not in readme) == []
