@@ -114,6 +114,11 @@ class Recorder:
             except queue.Full:
                 continue
 
+    @property
+    def writes(self) -> list[tuple[float, int]]:
+        """(seconds, bytes) of each flush's one write of chunk, summary and footer (`RollingSummaryStream`)."""
+        return self._stream.writes
+
     def close(self) -> None:
         """Write what is queued, the summary and the footer; the file is then a complete MCAP file."""
         if self._thread.is_alive():

@@ -12,6 +12,7 @@ millisecond a second) can leave a torn tail, which streaming readers skip and `a
 from __future__ import annotations
 
 import os
+import time
 
 from mcap.writer import Writer
 
@@ -25,6 +26,8 @@ class RollingSummaryStream:
         """File offset where the pending bytes go: the end of the data section written so far."""
         self._pending = bytearray()
         self.commits = 0
+        self.writes: list[tuple[float, int]] = []
+        """(seconds, bytes) of each commit's one write: the window in which a kill leaves a torn tail."""
 
     def write(self, data: bytes | bytearray | memoryview) -> int:
         self._pending += data
@@ -43,7 +46,9 @@ class RollingSummaryStream:
         offsets = "_Writer__summary_offsets"  # finish() appends the summary's offsets again each time
         getattr(writer, offsets).clear()
         writer.finish()
+        t0 = time.perf_counter()
         written = os.pwrite(self.fd, self._pending, self._base)
+        self.writes.append((time.perf_counter() - t0, len(self._pending)))
         if written != len(self._pending):
             raise OSError(f"short write to the recording: {written} of {len(self._pending)} bytes")
         os.ftruncate(self.fd, self._base + len(self._pending))

@@ -138,6 +138,10 @@ class LoopReading:
     """The last velocity command sent (None before the first)."""
     sequence: TaskSequence
     objects: MapObjects | None
+    base_estimate: np.ndarray | None = None
+    """The localizer's base pose [x, y, yaw] (`state.q[:3]`), None without localization."""
+    base_true: np.ndarray | None = None
+    """The simulator's true base pose [x, y, yaw] when the state was observed, None outside simulation."""
 
 
 def finite_state(state: RobotState) -> bool:
@@ -173,6 +177,8 @@ class ClosedLoop:
         self._pending_plans: deque[tuple[float, Plan]] = deque()
         self._frames: deque[DepthFrame] = deque()
         self.state: RobotState = self._initial_state()
+        self.base_true = self._true_base()
+        """The simulator's true base pose at the last observation (None outside simulation)."""
         self.history = StateHistory(horizon_s=2.0 + config.perception_delay_s)
         """Recent states, to place each frame at its exposure (`integrate_frames`)."""
         self.last_qdot = np.zeros(NQ)
@@ -224,6 +230,10 @@ class ClosedLoop:
         p = self.config.localization
         return Localizer(p) if p.enabled and self.config.map_kind != "ground_truth" else None
 
+    def _true_base(self) -> np.ndarray | None:
+        """The simulator's true base pose [x, y, yaw] now (what the robot does not know), None outside simulation."""
+        return None if self.world is None else self.world.state().q[:3].copy()
+
     def _initial_state(self) -> RobotState:
         state = self.backend.observe().state  # also drops frames of an earlier scene
         if finite_state(state):
@@ -256,7 +266,9 @@ class ClosedLoop:
                 edf=self.last_edf, frames=tuple(self.latest_frames.values()), timings_ms=dict(self.timings_ms),
                 min_distance_m=self.min_distance_m, config=self.config,
                 command=self.last_qdot.copy() if self.commanded else None, sequence=self.sequencer.sequence,
-                objects=self.objects_view)
+                objects=self.objects_view,
+                base_estimate=self.state.q[:3].copy() if self.localizer is not None else None,
+                base_true=None if self.base_true is None else self.base_true.copy())
 
     @property
     def moving(self) -> bool:
@@ -508,6 +520,7 @@ class ClosedLoop:
                 self.state = RobotState(t, previous.q, previous.v)
             self.fault(f"non-finite robot state at t = {t:.2f} s")
             return self.state
+        true_base = self._true_base()
         frames = obs.frames
         if self.localizer is not None:
             state, frames = self._reposed(state, frames)
@@ -517,6 +530,7 @@ class ClosedLoop:
                 self.frames_ready.notify()
         with self.lock:
             self.state = state
+            self.base_true = true_base
             self.history.append(state)
         return state
 

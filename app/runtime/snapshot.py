@@ -85,3 +85,9 @@ class Snapshot:
     """Waypoints and goals of the sequence (for drawing in recordings and Foxglove)."""
     anchors: MapObjects | None = None
     """The named objects as the sequencer saw them at the last control step (None: no names)."""
+    base_estimate: np.ndarray | None = None
+    """The localizer's base pose estimate [x, y, yaw] in the world (`state.q[:3]`, the pose the controller
+    drives), None without localization."""
+    base_true: np.ndarray | None = None
+    """The simulator's true base pose [x, y, yaw] when the state was observed (simulation only; what the robot
+    does not know: with the sensor model's drifting odometry it differs from `state.q[:3]`)."""

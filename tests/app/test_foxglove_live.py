@@ -84,6 +84,7 @@ def test_a_websocket_client_gets_transforms_and_the_scene_within_a_second(live_r
     assert seconds < 1.0
     frames = {t.child_frame_id: t.parent_frame_id for t in got["/tf"].transforms}  # type: ignore[attr-defined]
     assert frames["base"] == "world" and frames["forearm_link"] == "base"
+    assert frames["base_true"] == "world" and "base_estimated" not in frames  # simulated, no localization
     assert [e.id for e in got["/scene/boxes"].entities] == ["box/a"]  # type: ignore[attr-defined]
     assert len([e for e in got["/robot/model"].entities if e.models]) == 7  # type: ignore[attr-defined]
 

@@ -4,6 +4,8 @@ or unknown objects are grey."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from mcap.records import Schema
 
@@ -31,10 +33,13 @@ def test_base_poses_the_snapshot_carries_become_frames_of_their_own() -> None:
     snap = Snapshot(seq=0, wall_time=0.0, state=RobotState(3.25, q, np.zeros(9)))
     plain = {t.child_frame_id for t in _decode("foxglove.FrameTransforms", transforms(robot, snap)).transforms}
     assert "base_estimated" not in plain and {"base", "wrist_3_link", "camera_base"} <= plain
-    object.__setattr__(snap, "base_estimate", np.array([1.1, 1.9, 0.45]))  # what localization will add
-    tf = _decode("foxglove.FrameTransforms", transforms(robot, snap)).transforms
+    assert "base_true" not in plain
+    localized = replace(snap, base_estimate=np.array([1.1, 1.9, 0.45]), base_true=np.array([1.2, 2.0, 0.5]))
+    tf = _decode("foxglove.FrameTransforms", transforms(robot, localized)).transforms
     estimated = next(t for t in tf if t.child_frame_id == "base_estimated")
     assert estimated.parent_frame_id == "world" and (estimated.translation.x, estimated.translation.y) == (1.1, 1.9)
+    true = next(t for t in tf if t.child_frame_id == "base_true")
+    assert true.parent_frame_id == "world" and (true.translation.x, true.translation.y) == (1.2, 2.0)
     assert tf[0].timestamp.seconds == 3 and tf[0].timestamp.nanos == 250_000_000
 
 
@@ -79,3 +84,29 @@ def test_link_meshes_are_y_up_gltf_so_foxglove_draws_them_in_the_link_frame() ->
     lo, hi = trimesh.load(ur10_mesh("upper_arm_link", "collision")).bounds
     turned = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]]) @ np.array([accessor["min"], accessor["max"]]).T
     np.testing.assert_allclose(np.sort(turned, axis=1), np.column_stack([lo, hi]), atol=1e-5)  # Rx(+90°) undoes it
+
+
+def test_mapped_objects_carry_the_studio_label_with_the_operators_name() -> None:
+    """'#4 shelf E[v]=…' in the 3D panel and '#4 shelf' in `/map/posterior`: the name bound to map object 4 (as
+    `Snapshot.anchors` says) follows its id; an unnamed object is '#7'."""
+    from app.recording.foxglove_scene import scene_messages
+    from app.recording.topics import snapshot_messages
+    from core.types import MappedObject, ObjectMapSnapshot, Posterior
+    from tasks.anchors import MapObjects, ObjectView
+
+    def mapped(oid: int, x: float) -> MappedObject:
+        pose = np.eye(4)
+        pose[:3, 3] = (x, 0.0, 0.3)
+        return MappedObject(oid, pose, np.full(3, 0.6), np.zeros((0, 3)), Posterior(0.0, 0.1, 9.0, 1.0))
+
+    shelf = ObjectView("object_4", "shelf", np.array([1.0, 0.0, 0.3]), 0.0, np.full(3, 0.6))
+    other = ObjectView("object_7", None, np.array([3.0, 0.0, 0.3]), 0.0, np.full(3, 0.6))
+    snap = Snapshot(seq=0, wall_time=0.0, state=RobotState(1.0, READY_Q.copy(), np.zeros(9)),
+                    object_map=ObjectMapSnapshot(1.0, (mapped(4, 1.0), mapped(7, 3.0))),
+                    anchors=MapObjects(1.0, (shelf, other)))
+    scene = dict(scene_messages(RobotModel(), snap, with_points=False, with_model=False))
+    entities = _decode("foxglove.SceneUpdate", scene["/map/objects"]).entities
+    assert [e.texts[0].text for e in entities] == ["#4 shelf E[v]=0.90", "#7 E[v]=0.90"]
+    assert [{kv.key: kv.value for kv in e.metadata}["name"] for e in entities] == ["shelf", ""]
+    posterior = dict(snapshot_messages(snap))["/map/posterior"]
+    assert [o["label"] for o in posterior["objects"]] == ["#4 shelf", "#7"]

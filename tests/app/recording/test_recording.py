@@ -80,6 +80,7 @@ def test_every_message_decodes_with_the_schema_in_the_file(recorded) -> None:
     assert summary is not None and summary.statistics is not None
     assert summary.statistics.message_count == len(messages)
     assert summary.statistics.chunk_count in (rec.chunks, rec.chunks + 1) and rec.chunks > 3  # +1: closed by close()
+    assert len(rec.writes) == rec.chunks + 2 and all(b > 0 for _, b in rec.writes)  # + the header's and close()'s
     assert topics["/run/status"] == topics["/robot/state"] == topics["/tf"] == rec.count > 20
     assert topics["/plan"] > 20 and topics["/scene/boxes"] == topics["/plan/paths"] == rec.count
     assert topics["/map/points"] == (rec.count + 1) // 2 and topics["/camera/clouds"] >= topics["/map/points"] - 1
@@ -313,3 +314,11 @@ def test_the_foxglove_layout_shows_what_a_recording_holds(recorded) -> None:
         topic = max((t for t in last if path == t or path.startswith(t + ".")), key=len)
         values = _resolve(last[topic], path[len(topic):])
         assert values and all(v is not None for v in values), path
+
+
+def test_the_readme_names_every_topic_a_recording_holds(recorded) -> None:
+    """README's topic list is complete: every topic of a recording (with depth frames) is named there."""
+    readme = (ROOT / "README.md").read_text()
+    topics = {re.sub(r"^/camera/[^/]+/", "/camera/<name>/", topic) for topic, *_ in _decoded(recorded[0])}
+    assert "/camera/<name>/depth" in topics
+    assert sorted(t for t in topics if f"`{t}`" not in readme) == []
