@@ -229,7 +229,8 @@ def mapped_objects(t_s: float, object_map: ObjectMapSnapshot, theta_stat: float,
         top = pose[:3, 3] + (0.0, 0.0, float(np.asarray(o.extent, float)[2]) / 2 + 0.15)
         entities.append(SceneEntity(
             timestamp=stamp, frame_id=WORLD, id=f"object/{o.id}",
-            metadata=[KeyValuePair(key="E[v]", value=f"{e_v:.3f}"), KeyValuePair(key="status", value=o.status.value)],
+            metadata=[KeyValuePair(key="E[v]", value=f"{e_v:.3f}"), KeyValuePair(key="status", value=o.status.value),
+                      KeyValuePair(key="name", value=names.get(o.id, ""))],
             cubes=[CubePrimitive(pose=_pose(pose[:3, 3], quaternion), size=_vec(o.extent), color=_color(rgb, 0.5))],
             texts=[TextPrimitive(pose=_pose(top), billboard=True, font_size=14.0, scale_invariant=True,
                                  color=_color(rgb), text=f"{object_label(o.id, names.get(o.id))} E[v]={e_v:.2f}")]))
