@@ -5,10 +5,10 @@ carries (`SCHEMAS`), and the live server (`app.foxglove_live`) logs the same byt
 
 | topic | schema | what |
 | --- | --- | --- |
-| `/tf` | `foxglove.FrameTransforms` | world → base (q[0:3]) → arm links, cameras; hook `BASE_POSE_FRAMES` |
+| `/tf` | `foxglove.FrameTransforms` | world → base (q[0:3]) → arm links, cameras; world → base_estimated, base_true |
 | `/robot/model` | `foxglove.SceneUpdate` | the robot: UR10 link meshes embedded (GLB), the base's boxes; re-sent |
 | `/scene/boxes` | `foxglove.SceneUpdate` | ground-truth boxes (metadata: id, yaw, dark) |
-| `/map/objects` | `foxglove.SceneUpdate` | mapped objects coloured by E[v] (green → red, removed grey), labelled |
+| `/map/objects` | `foxglove.SceneUpdate` | mapped objects coloured by E[v] (green → red, removed grey), '#id name' |
 | `/plan/paths` | `foxglove.SceneUpdate` | predicted base and EE paths, the planned base path, the targets |
 | `/map/points`, `/camera/clouds` | `foxglove.PointCloud` | map points, decimated depth points (world, float32 x y z) |
 | `/camera/<name>/depth` | `foxglove.RawImage` | depth in metres (32FC1, 0 = no return), frame `camera_<name>` |
@@ -68,8 +68,9 @@ WORLD = "world"
 BASE = "base"
 CAMERA_FRAMES = ("camera_hand", "camera_base")
 BASE_POSE_FRAMES: dict[str, str] = {"base_estimated": "base_estimate", "base_true": "base_true"}
-"""Hook for localization: frame → Snapshot attribute holding a base pose [x, y, yaw]. A snapshot that has the
-attribute (not None) gets world → frame in `/tf` beside world → base (the pose the controller drives)."""
+"""Frame → Snapshot attribute holding a base pose [x, y, yaw]: a snapshot whose attribute is not None gets world →
+frame in `/tf` beside world → base (the pose the controller drives): `base_estimated` the localizer's estimate (with
+localization on; the same pose as `base`), `base_true` the simulator's truth (simulation only)."""
 
 PROTOBUF_TOPICS: dict[str, str] = {
     "/tf": "foxglove.FrameTransforms", "/robot/model": "foxglove.SceneUpdate", "/scene/boxes": "foxglove.SceneUpdate",

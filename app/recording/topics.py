@@ -7,10 +7,10 @@ Beside these, `app.recording.foxglove_scene` writes the Foxglove channels the 3D
 
 | topic | schema | when |
 | --- | --- | --- |
-| `/robot/state` | `htmpc.RobotState` (t, q[9], v[9]) | every snapshot |
+| `/robot/state` | `htmpc.RobotState` (t, q[9], v[9], base_estimate, base_true) | every snapshot |
 | `/robot/command` | `htmpc.JointVelocityCommand` (t, qdot[9], the last command sent) | when known |
 | `/plan` | `htmpc.Plan` (predicted q, v, u, Cartesian paths, task errors, solve times, status) | when a plan exists |
-| `/map/posterior` | `htmpc.ObjectMap` (`#id` label, pose, extent, E[v], posterior, status, last seen) | object map |
+| `/map/posterior` | `htmpc.ObjectMap` (`#id name` label, pose, extent, E[v], posterior, status, seen) | object map |
 | `/map/edf_slice` | `htmpc.EDFSlice` | when the controller has an EDF |
 | `/sequence/progress` | `htmpc.Progress` (subtasks, active index, planned base path) | every snapshot |
 | `/camera/<name>/info` | `htmpc.CameraInfo` (K, T_world_camera, range) | with each depth image |
@@ -68,8 +68,10 @@ def _obj(title: str, properties: dict[str, dict]) -> dict:
 
 
 SCHEMAS: dict[str, dict] = {
-    "htmpc.RobotState": _obj("robot state: q = [x, y, yaw, 6 arm joints] (m, rad), v their rates",
-                             {"t": _NUM, "q": _arr(), "v": _arr()}),
+    "htmpc.RobotState": _obj("robot state: q = [x, y, yaw, 6 arm joints] (m, rad), v their rates; base_estimate "
+                             "the localizer's [x, y, yaw] (null without localization), base_true the simulator's "
+                             "(null outside simulation)",
+                             {"t": _NUM, "q": _arr(), "v": _arr(), "base_estimate": _arr(), "base_true": _arr()}),
     "htmpc.JointVelocityCommand": _obj("the last joint velocity command sent (base rates in the world frame)",
                                        {"t": _NUM, "qdot": _arr()}),
     "htmpc.Plan": _obj("HTMPC plan", {
@@ -162,7 +164,9 @@ def _known(cls: type, data: dict) -> dict:
 def snapshot_messages(snap: Snapshot) -> list[tuple[str, dict]]:
     """The (topic, message) pairs of one snapshot's JSON topics, `/run/status` last."""
     t = snap.state.t
-    out: list[tuple[str, dict]] = [("/robot/state", {"t": t, "q": _list(snap.state.q), "v": _list(snap.state.v)})]
+    out: list[tuple[str, dict]] = [("/robot/state", {"t": t, "q": _list(snap.state.q), "v": _list(snap.state.v),
+                                                     "base_estimate": _list(snap.base_estimate),
+                                                     "base_true": _list(snap.base_true)})]
     if snap.command is not None:
         out.append(("/robot/command", {"t": t, "qdot": _list(snap.command)}))
     if snap.plan is not None:
@@ -263,7 +267,8 @@ def snapshot_from_messages(messages: dict[str, dict]) -> Snapshot:
         timings_ms={k: _nan(v) for k, v in run["timings_ms"].items()}, map_kind=run["map_kind"],
         constraint=run["constraint"], speed=run["speed"],
         command=None if command is None else _np(command["qdot"]), fault=run.get("fault"),
-        problems=tuple(_problem(p) for p in run.get("problems", ())))))
+        problems=tuple(_problem(p) for p in run.get("problems", ())),
+        base_estimate=_np_or_none(state.get("base_estimate")), base_true=_np_or_none(state.get("base_true")))))
 
 
 def depth_frame_from_messages(depth: np.ndarray, info: dict) -> DepthFrame:

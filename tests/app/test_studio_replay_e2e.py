@@ -39,7 +39,9 @@ def test_scrub_play_and_speed_in_the_browser(tmp_path, page):
                  "the robot drawn at that time")
         wait_for(lambda: studio.monitor.rows[-1][0] == pytest.approx(source.time), 30,
                  "the monitor at that time")  # its rows are published after the robot is drawn
-        page.get_by_text(f"replay {target - source.start_time:.1f} / 8.0 s").first.wait_for()
+        # the snapshot at or before the target (control steps follow the frames, not the clock's tenths)
+        shown = f"replay {source.time - source.start_time:.1f} / {source.end_time - source.start_time:.1f} s"
+        page.get_by_text(shown).first.wait_for()
         page.screenshot(path=str(ARTIFACTS / "studio_replay_scrubbed.png"))
         choose(page, "Replay speed (×)", "4")
         wait_for(lambda: source.config.speed == 4.0, 30, "the speed")
