@@ -3,8 +3,9 @@
 The runtime records (`record(kind, t, message)`) from a few hook points: every controller step
 (`observe_plan`: QP failures, fallback plans, slow solves), a crashed loop (fault), the bridge's stale
 state, a live loop that missed its period (watchdog), unknown space slowing the base (one per episode,
-`app/unknown_ahead.py`), a camera rate the live mapping cannot keep (each frame it skipped). Each kind keeps its count, first and last time and
-last message; the log is thread-safe (the loops and the bridge record from their own threads).
+`app/runtime/unknown_ahead.py`), a camera rate the live mapping cannot keep (each frame it skipped). Each kind
+keeps its count, first and last time and last message; the log is thread-safe (the loops and the bridge record
+from their own threads).
 """
 
 from __future__ import annotations
