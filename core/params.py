@@ -215,7 +215,8 @@ class HTMPCParams:
     control_trigger_cameras: tuple[str, ...] = ("base", "hand")
     """Whose integrated frames trigger a control step (`control_on_new_map`)."""
     control_max_rate_hz: float = 20.0
-    """Triggered steps never come closer than 1 / this (s of robot time): bounds the CPU a fast camera costs."""
+    """A camera's frames trigger steps no closer than 1 / this (s of robot time) apart: bounds the CPU a fast
+    camera costs (the two 10 Hz cameras trigger at most 20 steps a second together)."""
     hierarchy: Hierarchy = "lexicographic"
     """'lexicographic' (eqs. 6–7) or 'weighted' (one weighted-sum MPC, for comparison)."""
     trust_region_m: float = 1.0

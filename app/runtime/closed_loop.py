@@ -199,8 +199,11 @@ class ClosedLoop:
         self._last_control_t = -math.inf
         self.frames_skipped = 0
         """Live: depth frames the mapping loop skipped because it was behind (`wait_for_frames`)."""
-        self._map_news = False
-        """The map took frames of `HTMPCParams.control_trigger_cameras` since the last control step."""
+        self._map_news: frozenset[str] = frozenset()
+        """The trigger cameras (`HTMPCParams.control_trigger_cameras`) whose frames the map took since the last
+        control step (replaced, never changed in place: the mapping and control threads both read it)."""
+        self._triggered_t: dict[str, float] = {}
+        """Robot time of the last control step each trigger camera's news went into."""
         self.log = RunLog()
         self.problems = ProblemLog(1e3 / config.htmpc.control_rate_hz)
         self.control_steps = 0
@@ -657,15 +660,18 @@ class ClosedLoop:
             self._stamp_integration(world_map, frames, t0, t1)
         self.localize(frames)
         p = self.controller.params
-        if p.control_on_new_map and any(f.camera in p.control_trigger_cameras for f in frames):
-            self._map_news = True
+        if p.control_on_new_map:
+            self._map_news |= {f.camera for f in frames if f.camera in p.control_trigger_cameras}
         return tuple(f.camera for f in frames)
 
     def control_triggered(self, t: float) -> bool:
         """Whether the map has taken frames that call for a control step now (`HTMPCParams.control_on_new_map`):
-        new frames of `control_trigger_cameras` since the last step, at least 1 / `control_max_rate_hz` of robot
-        time after it (until then the news waits)."""
-        return self._map_news and t + 1e-9 >= self._last_control_t + 1.0 / self.controller.params.control_max_rate_hz
+        new frames of a camera of `control_trigger_cameras` since the last step, at least 1 / `control_max_rate_hz` of
+        robot time after the last step that camera's news went into (until then its news waits). Per camera, so two
+        cameras at different phases do not hold each other's frames back; the steps a second stay within the
+        cameras' rates, each capped at `control_max_rate_hz`."""
+        spacing = 1.0 / self.controller.params.control_max_rate_hz
+        return any(t + 1e-9 >= self._triggered_t.get(c, -math.inf) + spacing for c in self._map_news)
 
     def _stamp_integration(self, world_map: WorldMap, frames: tuple[DepthFrame, ...], t0: float, t1: float) -> None:
         """Record an integration (benchmarks): its frames, wall span, and the EDF an isolated map built after it."""
@@ -688,7 +694,9 @@ class ClosedLoop:
     def control(self, state: RobotState) -> None:
         """Sequencer → references → HTMPC; the plan becomes active after the modelled actuation delay."""
         t0 = time.perf_counter()
-        self._map_news = False  # this step plans on the map as it is now
+        news, self._map_news = self._map_news, frozenset()  # this step plans on the map as it is now
+        for camera in news:
+            self._triggered_t[camera] = state.t
         with self.step_lock:
             with self.lock:
                 if self.run_state != RunState.RUNNING:

@@ -81,7 +81,8 @@ EE_BOX_BOTTOM_M = 0.65
 """The EE test box floats with its bottom here: above the base body (0.32 m) and its rack's front."""
 OWN_PROCESSING_S = 0.115
 """Our own processing delay from a frame's stamp to the command (s): `processing_ms_p95` measured live by
-`python -m bench.closed_loop --reaction-only` at the product's rates (docs/decisions.md, "Control on a new map")."""
+`python -m bench.closed_loop --reaction-only` at the product's rates, at load 4–5 (58 ms on a quiet machine: the
+larger one is modelled; docs/decisions.md, "Control on a new map")."""
 
 
 @dataclass(frozen=True)
