@@ -1,8 +1,8 @@
 """What an operator reads at a glance, in a real headless Chromium (Debian's): "no path to the goal" said at once
-and Skip going on; an edit during a run said to wait for the next run; the monitor's axes with units and its
-history over the whole run; mapped objects named by their map id ('#4', '#4 box_a' once named) alike in the 3D
-labels, the E[v] legend and the subtasks. With UPDATE_README_SCREENSHOT=1 the mid-run screenshot of named objects
-becomes docs/studio.png."""
+and Skip going on; "blocked" with the nearest obstacle when the robot's margin holds it before a gap; an edit
+during a run said to wait for the next run; the monitor's axes with units and its history over the whole run;
+mapped objects named by their map id ('#4', '#4 box_a' once named) alike in the 3D labels, the E[v] legend and
+the subtasks. With UPDATE_README_SCREENSHOT=1 the mid-run screenshot of named objects becomes docs/studio.png."""
 
 import os
 import re
@@ -19,7 +19,7 @@ from tasks import load_sequence
 from tasks.sequence_file import EXAMPLES_DIR
 from tests.app.conftest import ARTIFACTS, ROOT
 from tests.app.studio_page import live_studio, open_studio, set_vector, wait_for
-from tests.app.test_no_path import PEN_SEQUENCE, pen_scene
+from tests.app.test_no_path import PEN_SEQUENCE, THROUGH_THE_GAP, WIDE_MARGIN, pen_scene, wall_with_a_gap
 
 
 def page_text(page) -> str:
@@ -64,6 +64,19 @@ def test_no_path_is_said_skip_goes_on_and_edits_wait_for_the_next_start(page):
         for plot in plots:
             assert plot is not None
             assert all(axis["label"] for axis in plot.axes) and all("(" in axis["label"] for axis in plot.axes)
+
+
+@pytest.mark.slow
+def test_a_robot_held_before_a_gap_is_said_blocked_with_the_nearest_obstacle(page):
+    runtime = Runtime(RuntimeConfig(map_kind="ground_truth", htmpc=WIDE_MARGIN, speed=2.0), scene=wall_with_a_gap(),
+                      sequence=THROUGH_THE_GAP)
+    with live_studio(runtime) as studio:
+        open_studio(page, studio)
+        page.get_by_role("button", name="Start").click()
+        page.get_by_text(re.compile(r"blocked: no progress for \d+ s, [\d.]+ m from the goal; nearest obstacle "
+                                    r"[\d.]+ m away at \(")).first.wait_for(timeout=120_000)
+        assert runtime.run_state == RunState.RUNNING and runtime.state.q[0] < 2.0
+        page.screenshot(path=str(ARTIFACTS / "studio_blocked.png"))
 
 
 @pytest.mark.slow
