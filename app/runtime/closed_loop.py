@@ -630,22 +630,21 @@ class ClosedLoop:
         for camera, n in skipped.items():
             self.frames_skipped += n
             self.problems.record(ProblemKind.FRAMES_SKIPPED, t,
-                                 f"the map fell behind the {camera} camera: {n} frame{'s' if n > 1 else ''} "
-                                 f"skipped ({self.frames_skipped} in all; only the newest is integrated)")
+                                 f"the map fell behind the {camera} camera: {plural(n, 'frame')} skipped "
+                                 f"({self.frames_skipped} in all; only the newest is integrated)")
 
     def wake_mapping(self) -> None:
         with self.frames_ready:
             self.frames_ready.notify_all()
 
-    def integrate_frames(self, now: float) -> tuple[str, ...]:
-        """Give the map every queued frame older than the modelled perception delay (none while faulted); the
-        cameras whose frames it took."""
+    def integrate_frames(self, now: float) -> None:
+        """Give the map every queued frame older than the modelled perception delay (none while faulted)."""
         with self.frames_ready:
             due = []
             while self._frames and self._frames[0].t <= now - self.config.perception_delay_s + 1e-9:
                 due.append(self._frames.popleft())
         if not due or self.fault_reason is not None:
-            return ()
+            return
         with self.lock:
             frames, state = self._at_exposure(due)
             for frame in frames:  # the studio's clouds too, where the camera was
@@ -662,7 +661,6 @@ class ClosedLoop:
         p = self.controller.params
         if p.control_on_new_map:
             self._map_news |= {f.camera for f in frames if f.camera in p.control_trigger_cameras}
-        return tuple(f.camera for f in frames)
 
     def control_triggered(self, t: float) -> bool:
         """Whether the map has taken frames that call for a control step now (`HTMPCParams.control_on_new_map`):

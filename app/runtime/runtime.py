@@ -388,8 +388,7 @@ class Runtime:
         loop.controller.enforce_timeout = False  # simulated time waits for the solver
         t_end = self.time + max_duration_s
         k, fault_ticks = 0, 0
-        next_control_k, control_steps = 0, 0
-        """The command tick the next periodic control step is due at; control steps so far."""
+        next_control_k, control_steps = 0, 0  # the tick the next periodic control step is due at; steps so far
 
         def after_control() -> None:
             if on_control is not None:

@@ -12,7 +12,7 @@ import pytest
 from bench.bridge_reaction import bridge_reaction_figures, measure_bridge_reactions
 from bench.bridge_reaction_chain import BRIDGE_PARTS, BridgeReaction
 from core.params import HTMPCParams, MappingParams
-from tests.bench.reaction_checks import first_slowed
+from tests.bench.reaction_checks import first_slowed, step_that_held_the_box
 
 EVENTS = 3
 
@@ -29,9 +29,7 @@ def test_every_reaction_counted_is_one_to_the_box_the_driver_placed(run) -> None
         assert placement.h_m < placement.v_before_mps / gamma  # the constraint had to act
         command = first_slowed(run.stamps, placement)
         assert reaction.issued_ms == pytest.approx((command.wall - placement.wall) * 1e3)
-        step = next(s for s in run.stamps.controls if s.plan is command.plan)
-        assert step.wall_wake > placement.wall  # solved after the box appeared in the driver's world …
-        assert step.edf is not None and float(step.edf.distance(placement.face)) <= voxel  # … with the box in it
+        step_that_held_the_box(run.stamps, placement, command, voxel)  # in the driver's world
 
 
 def test_the_parts_happened_in_order_and_add_up_to_the_whole(run) -> None:

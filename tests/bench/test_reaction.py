@@ -10,7 +10,7 @@ import pytest
 from bench.reaction import measure_reactions
 from bench.reaction_chain import PARTS, Reaction
 from core.params import HTMPCParams, MappingParams
-from tests.bench.reaction_checks import first_slowed
+from tests.bench.reaction_checks import first_slowed, step_that_held_the_box
 
 EVENTS = 3
 
@@ -27,9 +27,7 @@ def test_every_reaction_counted_is_one_to_the_box(run) -> None:
         assert placement.h_m < placement.v_before_mps / gamma  # the constraint had to act
         command = first_slowed(run.stamps, placement)
         assert reaction.total_ms == pytest.approx((command.wall - placement.wall) * 1e3)
-        step = next(s for s in run.stamps.controls if s.plan is command.plan)
-        assert step.wall_wake > placement.wall  # solved after the box appeared …
-        assert step.edf is not None and float(step.edf.distance(placement.face)) <= voxel  # … with the box in it
+        step = step_that_held_the_box(run.stamps, placement, command, voxel)
         seen = [f for i in run.stamps.integrations if placement.wall < i.wall_end <= step.wall_edf for f in i.frames
                 if f.exposure_t > placement.t]
         assert seen  # a frame taken after the placement reached the map before that step
