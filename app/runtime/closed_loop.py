@@ -56,7 +56,7 @@ from app.runtime.unknown_ahead import planner_points, unknown_ahead
 from app.target_check import recheck_anchored
 from core.errors import StudioError
 from core.htmpc.safety import brake_along, braking_plan
-from core.localization import Localizer, se2
+from core.localization import LocalizationHealth, Localizer, se2
 from core.mapping.frame_exposure import camera_latency, frames_at_exposure
 from core.mapping.reference_surface import occupied_surface, trusted_surface
 from core.mapping.world_map import WorldMap
@@ -142,6 +142,8 @@ class LoopReading:
     """The localizer's base pose [x, y, yaw] (`state.q[:3]`), None without localization."""
     base_true: np.ndarray | None = None
     """The simulator's true base pose [x, y, yaw] when the state was observed, None outside simulation."""
+    localization: LocalizationHealth | None = None
+    """The pose estimate's health now (`core/localization/health.py`), None without localization."""
 
 
 def finite_state(state: RobotState) -> bool:
@@ -211,6 +213,10 @@ class ClosedLoop:
         self._unknown_slowed = False
         """Control steps, and those slowed by unknown space ahead (`app/runtime/unknown_ahead.py`)."""
         self.localizer = self._localizer()
+        self._untrusted = False
+        """Whether the last control step found the pose untrusted (a new episode is a problem)."""
+        self.untrusted_steps = 0
+        """Control steps taken while the pose was untrusted."""
         self._surface: ReferenceSurface | None = None
         self.reference_override: Callable[[float], ReferenceSurface] | None = None
         """Benchmarks: a reference other than the map's (the true scene's surfaces, to measure registration
@@ -231,7 +237,7 @@ class ClosedLoop:
     def _localizer(self) -> Localizer | None:
         """Localization (`LocalizationParams.enabled`) for a perceived map; the start pose is the world frame."""
         p = self.config.localization
-        return Localizer(p) if p.enabled and self.config.map_kind != "ground_truth" else None
+        return Localizer(p, self.state.t) if p.enabled and self.config.map_kind != "ground_truth" else None
 
     def _true_base(self) -> np.ndarray | None:
         """The simulator's true base pose [x, y, yaw] now (what the robot does not know), None outside simulation."""
@@ -271,7 +277,15 @@ class ClosedLoop:
                 command=self.last_qdot.copy() if self.commanded else None, sequence=self.sequencer.sequence,
                 objects=self.objects_view,
                 base_estimate=self.state.q[:3].copy() if self.localizer is not None else None,
-                base_true=None if self.base_true is None else self.base_true.copy())
+                base_true=None if self.base_true is None else self.base_true.copy(),
+                localization=self.health(self.state.t))
+
+    def health(self, t: float) -> LocalizationHealth | None:
+        """The pose estimate's health at robot time t against the configured delta_safe (None without
+        localization)."""
+        if self.localizer is None:
+            return None
+        return self.localizer.health(t, self.config.htmpc.delta_safe_m)
 
     @property
     def moving(self) -> bool:
@@ -709,7 +723,8 @@ class ClosedLoop:
                 objects = map_objects(self.names, world_map, sequencer.sequence, self.world, state.t)
             refs = sequencer.update(state, planner_points(occupied, edf), state.t, objects)
             self._tell_anchor_moves(sequencer, objects, state.t)
-            notice = self._unknown_notice(state, refs, edf)
+            notices = (self._unknown_notice(state, refs, edf), self._localization_notice(state.t, controller))
+            notice = " · ".join(n for n in notices if n) or None
             plan, solve_ms = None, math.nan
             t_solve = t_solved = time.perf_counter()
             if refs is not None:
@@ -757,6 +772,27 @@ class ClosedLoop:
             if not self._unknown_slowed:
                 self.problems.record(ProblemKind.UNKNOWN_SPACE, state.t, notice)
         self._unknown_slowed = notice is not None
+        return notice
+
+    def _localization_notice(self, t: float, controller: HTMPC) -> str | None:
+        """The pose's health at this control step: delta_safe grown by its uncertainty
+        (`LocalizationParams.grow_margin`), an untrusted pose said in the status line and, once per episode,
+        recorded as a problem (call under `step_lock`)."""
+        health = self.health(t)
+        if health is None:
+            return None
+        delta = self.config.htmpc.delta_safe_m
+        controller.set_delta_safe(delta + health.margin_growth_m)
+        untrusted, was = health.untrusted, self._untrusted
+        self._untrusted = untrusted is not None
+        if untrusted is None:
+            return None
+        self.untrusted_steps += 1
+        grown = f"; delta_safe {delta:.2f} → {delta + health.margin_growth_m:.2f} m" if health.margin_growth_m else ""
+        notice = f"localization untrusted: {untrusted}{grown}"
+        if not was:
+            self.problems.record(ProblemKind.LOCALIZATION, t, notice)
+            self.notify(notice)
         return notice
 
     def _tell_anchor_moves(self, sequencer: Sequencer, objects: MapObjects | None, t: float) -> None:

@@ -54,7 +54,8 @@ def build_snapshot(loop: ClosedLoop, seq: int, messages: tuple[str, ...], sequen
         collisions=len(world.collisions) if world else 0, timings_ms=r.timings_ms, map_kind=r.config.map_kind,
         constraint=r.config.constraint, speed=r.config.speed, messages=messages, fault=r.fault, command=r.command,
         depth_frames=r.frames, problems=loop.problems.counts(), targets=target_marks(r.sequence, r.view.progress),
-        anchors=r.objects, base_estimate=r.base_estimate, base_true=r.base_true)
+        anchors=r.objects, base_estimate=r.base_estimate, base_true=r.base_true,
+        localization=r.localization)
 
 
 def _map_view(loop: ClosedLoop) -> tuple[ObjectMapSnapshot | None, np.ndarray | None]:
