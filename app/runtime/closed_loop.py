@@ -146,6 +146,16 @@ class LoopReading:
     """The pose estimate's health now (`core/localization/health.py`), None without localization."""
 
 
+def untrusted_notice(health: LocalizationHealth | None, delta_safe_m: float) -> str | None:
+    """The operator's line for an untrusted pose, with the delta_safe the controller keeps for it; None while
+    the pose is trusted (or without localization)."""
+    if health is None or health.untrusted is None:
+        return None
+    grown = (f"; delta_safe {delta_safe_m:.2f} → {delta_safe_m + health.margin_growth_m:.2f} m"
+             if health.margin_growth_m else "")
+    return f"localization untrusted: {health.untrusted}{grown}"
+
+
 def finite_state(state: RobotState) -> bool:
     return bool(np.isfinite(state.t) and np.all(np.isfinite(state.q)) and np.all(np.isfinite(state.v)))
 
@@ -216,7 +226,7 @@ class ClosedLoop:
         self._untrusted = False
         """Whether the last control step found the pose untrusted (a new episode is a problem)."""
         self.untrusted_steps = 0
-        """Control steps taken while the pose was untrusted."""
+        """Health checks (`watch_health`) that found the pose untrusted."""
         self._surface: ReferenceSurface | None = None
         self.reference_override: Callable[[float], ReferenceSurface] | None = None
         """Benchmarks: a reference other than the map's (the true scene's surfaces, to measure registration
@@ -576,7 +586,8 @@ class ClosedLoop:
 
     def localize(self, frames: tuple[DepthFrame, ...]) -> None:
         """Register the frames localization wants (at their exposure, posed by the current estimate) against
-        the map's trusted surfaces; hand the objects that disagreed to the map as change evidence."""
+        the map's trusted surfaces; hand the objects that disagreed to the map as change evidence; watch the
+        pose's health (`watch_health`)."""
         localizer = self.localizer
         if localizer is None:
             return
@@ -587,6 +598,9 @@ class ClosedLoop:
                 exposure = self.history.at(frame.t)
             base = (exposure or self.state).q[:3]
             localizer.correct(frame, base, self._reference_surface(frame.t))
+        with self.lock:
+            now = self.state.t
+        self.watch_health(now)
         evidence = localizer.take_change_evidence()
         if evidence:
             with self.using_map() as world_map:
@@ -723,8 +737,8 @@ class ClosedLoop:
                 objects = map_objects(self.names, world_map, sequencer.sequence, self.world, state.t)
             refs = sequencer.update(state, planner_points(occupied, edf), state.t, objects)
             self._tell_anchor_moves(sequencer, objects, state.t)
-            notices = (self._unknown_notice(state, refs, edf), self._localization_notice(state.t, controller))
-            notice = " · ".join(n for n in notices if n) or None
+            notice = self._unknown_notice(state, refs, edf)
+            self._answer_health(state.t, controller)
             plan, solve_ms = None, math.nan
             t_solve = t_solved = time.perf_counter()
             if refs is not None:
@@ -774,26 +788,31 @@ class ClosedLoop:
         self._unknown_slowed = notice is not None
         return notice
 
-    def _localization_notice(self, t: float, controller: HTMPC) -> str | None:
-        """The pose's health at this control step: delta_safe grown by its uncertainty
-        (`LocalizationParams.grow_margin`), an untrusted pose said in the status line and, once per episode,
-        recorded as a problem (call under `step_lock`)."""
+    def _answer_health(self, t: float, controller: HTMPC) -> None:
+        """The controller's answer to the pose's health at this control step: delta_safe grown by its uncertainty
+        (`LocalizationParams.grow_margin`; zero growth while σ is small); an untrusted pose is also watched here
+        (call under `step_lock`)."""
+        health = self.watch_health(t)
+        if health is not None:
+            controller.set_delta_safe(self.config.htmpc.delta_safe_m + health.margin_growth_m)
+
+    def watch_health(self, t: float) -> LocalizationHealth | None:
+        """The pose's health at robot time t; a new untrusted episode is recorded as a problem (once) and told to
+        the operator. Called after every integration (`localize`) and control step, so a run that stands still
+        or has finished is watched too."""
         health = self.health(t)
         if health is None:
             return None
-        delta = self.config.htmpc.delta_safe_m
-        controller.set_delta_safe(delta + health.margin_growth_m)
-        untrusted, was = health.untrusted, self._untrusted
-        self._untrusted = untrusted is not None
-        if untrusted is None:
-            return None
-        self.untrusted_steps += 1
-        grown = f"; delta_safe {delta:.2f} → {delta + health.margin_growth_m:.2f} m" if health.margin_growth_m else ""
-        notice = f"localization untrusted: {untrusted}{grown}"
-        if not was:
-            self.problems.record(ProblemKind.LOCALIZATION, t, notice)
-            self.notify(notice)
-        return notice
+        with self.lock:
+            was, self._untrusted = self._untrusted, health.untrusted is not None
+        if health.untrusted is not None:
+            self.untrusted_steps += 1
+            if not was:
+                notice = untrusted_notice(health, self.config.htmpc.delta_safe_m)
+                assert notice is not None
+                self.problems.record(ProblemKind.LOCALIZATION, t, notice)
+                self.notify(notice)
+        return health
 
     def _tell_anchor_moves(self, sequencer: Sequencer, objects: MapObjects | None, t: float) -> None:
         """An anchored target followed its object: tell the operator, and check the target again there (an
