@@ -152,7 +152,7 @@ def untrusted_notice(health: LocalizationHealth | None, delta_safe_m: float) -> 
     if health is None or health.untrusted is None:
         return None
     grown = (f"; delta_safe {delta_safe_m:.2f} → {delta_safe_m + health.margin_growth_m:.2f} m"
-             if health.margin_growth_m else "")
+             if health.margin_growth_m >= 0.005 else "")  # said once it shows in centimetres
     return f"localization untrusted: {health.untrusted}{grown}"
 
 

@@ -17,6 +17,8 @@ SIGMAS = 3.0
 ELLIPSE_POINTS = 48
 WEDGE_LENGTH_M = 0.9
 Z_M = 0.03
+"""The ghost's outline lies just above the floor; the ellipse and wedge just above the base's top (`base_size_m`),
+where the body does not hide them."""
 ESTIMATE_COLOR = (220, 40, 160)
 UNTRUSTED_COLOR = (230, 30, 30)
 GHOST_COLOR = (40, 200, 120)
@@ -47,8 +49,8 @@ def footprint(pose: np.ndarray, length: float, width: float) -> np.ndarray:
     return np.asarray(pose[:2], float) + corners @ np.array([[c, s], [-s, c]])
 
 
-def _segments(xy: np.ndarray) -> np.ndarray:
-    pts = np.column_stack([xy, np.full(len(xy), Z_M)]).astype(np.float32)
+def _segments(xy: np.ndarray, z: float) -> np.ndarray:
+    pts = np.column_stack([xy, np.full(len(xy), z)]).astype(np.float32)
     return np.stack([pts[:-1], pts[1:]], axis=1)
 
 
@@ -62,7 +64,8 @@ class PoseView:
         self._ghost: viser.BoxHandle | None = None
         self._last: dict[str, bytes | None] = {}
 
-    def _lines(self, name: str, xy: np.ndarray | None, color: tuple[int, int, int], width: float) -> None:
+    def _lines(self, name: str, xy: np.ndarray | None, color: tuple[int, int, int], width: float,
+               z: float = Z_M) -> None:
         key = None if xy is None else np.asarray(xy, np.float32).round(3).tobytes() + bytes(color)
         if key == self._last.get(name):
             return  # unchanged: nothing re-sent
@@ -71,7 +74,7 @@ class PoseView:
         if old is not None:
             old.remove()
         if xy is not None:
-            self.handles[name] = self.server.scene.add_line_segments(f"/localization/{name}", _segments(xy),
+            self.handles[name] = self.server.scene.add_line_segments(f"/localization/{name}", _segments(xy, z),
                                                                      colors=color, thickness=width)
 
     def update(self, snap: Snapshot) -> None:
@@ -79,8 +82,9 @@ class PoseView:
         shown = health is not None and estimate is not None
         if health is not None and estimate is not None:
             color = UNTRUSTED_COLOR if health.untrusted else ESTIMATE_COLOR
-            self._lines("ellipse", ellipse(estimate[:2], health.covariance[:2, :2]), color, 0.02)
-            self._lines("wedge", wedge(estimate, health.sigma_yaw_rad), color, 0.015)
+            top = self.base_size_m[2] + Z_M
+            self._lines("ellipse", ellipse(estimate[:2], health.covariance[:2, :2]), color, 0.02, top)
+            self._lines("wedge", wedge(estimate, health.sigma_yaw_rad), color, 0.015, top)
         else:
             self._lines("ellipse", None, ESTIMATE_COLOR, 0.0)
             self._lines("wedge", None, ESTIMATE_COLOR, 0.0)
@@ -94,7 +98,7 @@ class PoseView:
             if self._ghost is not None:
                 self._ghost.visible = False
             return
-        self._lines("ghost_outline", footprint(truth, length, width), GHOST_COLOR, 0.02)
+        self._lines("ghost_outline", footprint(truth, length, width), GHOST_COLOR, 0.03)
         if self._ghost is None:
             self._ghost = self.server.scene.add_box("/localization/ghost", color=GHOST_COLOR,
                                                     dimensions=(length, width, height), opacity=0.25,
