@@ -549,6 +549,20 @@ class LocalizationParams:
     reference_period_s: float = 2.0
     """The loop asks the map for its trusted surfaces at most this often (s); the prepared reference is kept
     while the surfaces and the base's 1 m cell stay the same."""
+    untrusted_after_s: float = 10.0
+    """Health (`core/localization/health.py`): no correction accepted for longer than this (s of robot time, counted
+    from the start while none has been) makes the pose untrusted, a problem the operator sees."""
+    trust_sigmas: float = 3.0
+    trust_delta_share: float = 0.5
+    """Health: the pose is untrusted while trust_sigmas σ_xy (σ_xy the largest position std of P, m) exceeds
+    trust_delta_share × delta_safe (`HTMPCParams.delta_safe_m`): the position may be off by more than the margin
+    can spare."""
+    grow_margin: bool = True
+    """Our addition (docs/method.md, "State estimation"): the controller's delta_safe grows by what the pose's
+    uncertainty eats of it, clip(trust_sigmas σ_xy − trust_delta_share delta_safe, 0, margin_growth_max_m); zero
+    while the pose is trusted by its σ. False: delta_safe as configured, whatever the uncertainty."""
+    margin_growth_max_m: float = 0.3
+    """The most the margin grows (m): beyond it the robot would not pass anything at all."""
 
     def __post_init__(self) -> None:
         check_choices(self)

@@ -56,7 +56,7 @@ from app.runtime.unknown_ahead import planner_points, unknown_ahead
 from app.target_check import recheck_anchored
 from core.errors import StudioError
 from core.htmpc.safety import brake_along, braking_plan
-from core.localization import Localizer, se2
+from core.localization import LocalizationHealth, Localizer, se2
 from core.mapping.frame_exposure import camera_latency, frames_at_exposure
 from core.mapping.reference_surface import occupied_surface, trusted_surface
 from core.mapping.world_map import WorldMap
@@ -142,6 +142,18 @@ class LoopReading:
     """The localizer's base pose [x, y, yaw] (`state.q[:3]`), None without localization."""
     base_true: np.ndarray | None = None
     """The simulator's true base pose [x, y, yaw] when the state was observed, None outside simulation."""
+    localization: LocalizationHealth | None = None
+    """The pose estimate's health now (`core/localization/health.py`), None without localization."""
+
+
+def untrusted_notice(health: LocalizationHealth | None, delta_safe_m: float) -> str | None:
+    """The operator's line for an untrusted pose, with the delta_safe the controller keeps for it; None while
+    the pose is trusted (or without localization)."""
+    if health is None or health.untrusted is None:
+        return None
+    grown = (f"; delta_safe {delta_safe_m:.2f} → {delta_safe_m + health.margin_growth_m:.2f} m"
+             if health.margin_growth_m >= 0.005 else "")  # said once it shows in centimetres
+    return f"localization untrusted: {health.untrusted}{grown}"
 
 
 def finite_state(state: RobotState) -> bool:
@@ -211,6 +223,10 @@ class ClosedLoop:
         self._unknown_slowed = False
         """Control steps, and those slowed by unknown space ahead (`app/runtime/unknown_ahead.py`)."""
         self.localizer = self._localizer()
+        self._untrusted = False
+        """Whether the last control step found the pose untrusted (a new episode is a problem)."""
+        self.untrusted_steps = 0
+        """Health checks (`watch_health`) that found the pose untrusted."""
         self._surface: ReferenceSurface | None = None
         self.reference_override: Callable[[float], ReferenceSurface] | None = None
         """Benchmarks: a reference other than the map's (the true scene's surfaces, to measure registration
@@ -231,7 +247,7 @@ class ClosedLoop:
     def _localizer(self) -> Localizer | None:
         """Localization (`LocalizationParams.enabled`) for a perceived map; the start pose is the world frame."""
         p = self.config.localization
-        return Localizer(p) if p.enabled and self.config.map_kind != "ground_truth" else None
+        return Localizer(p, self.state.t) if p.enabled and self.config.map_kind != "ground_truth" else None
 
     def _true_base(self) -> np.ndarray | None:
         """The simulator's true base pose [x, y, yaw] now (what the robot does not know), None outside simulation."""
@@ -271,7 +287,15 @@ class ClosedLoop:
                 command=self.last_qdot.copy() if self.commanded else None, sequence=self.sequencer.sequence,
                 objects=self.objects_view,
                 base_estimate=self.state.q[:3].copy() if self.localizer is not None else None,
-                base_true=None if self.base_true is None else self.base_true.copy())
+                base_true=None if self.base_true is None else self.base_true.copy(),
+                localization=self.health(self.state.t))
+
+    def health(self, t: float) -> LocalizationHealth | None:
+        """The pose estimate's health at robot time t against the configured delta_safe (None without
+        localization)."""
+        if self.localizer is None:
+            return None
+        return self.localizer.health(t, self.config.htmpc.delta_safe_m)
 
     @property
     def moving(self) -> bool:
@@ -562,7 +586,8 @@ class ClosedLoop:
 
     def localize(self, frames: tuple[DepthFrame, ...]) -> None:
         """Register the frames localization wants (at their exposure, posed by the current estimate) against
-        the map's trusted surfaces; hand the objects that disagreed to the map as change evidence."""
+        the map's trusted surfaces; hand the objects that disagreed to the map as change evidence; watch the
+        pose's health (`watch_health`)."""
         localizer = self.localizer
         if localizer is None:
             return
@@ -573,6 +598,9 @@ class ClosedLoop:
                 exposure = self.history.at(frame.t)
             base = (exposure or self.state).q[:3]
             localizer.correct(frame, base, self._reference_surface(frame.t))
+        with self.lock:
+            now = self.state.t
+        self.watch_health(now)
         evidence = localizer.take_change_evidence()
         if evidence:
             with self.using_map() as world_map:
@@ -710,6 +738,7 @@ class ClosedLoop:
             refs = sequencer.update(state, planner_points(occupied, edf), state.t, objects)
             self._tell_anchor_moves(sequencer, objects, state.t)
             notice = self._unknown_notice(state, refs, edf)
+            self._answer_health(state.t, controller)
             plan, solve_ms = None, math.nan
             t_solve = t_solved = time.perf_counter()
             if refs is not None:
@@ -758,6 +787,32 @@ class ClosedLoop:
                 self.problems.record(ProblemKind.UNKNOWN_SPACE, state.t, notice)
         self._unknown_slowed = notice is not None
         return notice
+
+    def _answer_health(self, t: float, controller: HTMPC) -> None:
+        """The controller's answer to the pose's health at this control step: delta_safe grown by its uncertainty
+        (`LocalizationParams.grow_margin`; zero growth while σ is small); an untrusted pose is also watched here
+        (call under `step_lock`)."""
+        health = self.watch_health(t)
+        if health is not None:
+            controller.set_delta_safe(self.config.htmpc.delta_safe_m + health.margin_growth_m)
+
+    def watch_health(self, t: float) -> LocalizationHealth | None:
+        """The pose's health at robot time t; a new untrusted episode is recorded as a problem (once) and told to
+        the operator. Called after every integration (`localize`) and control step, so a run that stands still
+        or has finished is watched too."""
+        health = self.health(t)
+        if health is None:
+            return None
+        with self.lock:
+            was, self._untrusted = self._untrusted, health.untrusted is not None
+        if health.untrusted is not None:
+            self.untrusted_steps += 1
+            if not was:
+                notice = untrusted_notice(health, self.config.htmpc.delta_safe_m)
+                assert notice is not None
+                self.problems.record(ProblemKind.LOCALIZATION, t, notice)
+                self.notify(notice)
+        return health
 
     def _tell_anchor_moves(self, sequencer: Sequencer, objects: MapObjects | None, t: float) -> None:
         """An anchored target followed its object: tell the operator, and check the target again there (an

@@ -3,7 +3,8 @@
 The runtime records (`record(kind, t, message)`) from a few hook points: every controller step
 (`observe_plan`: QP failures, fallback plans, slow solves), a crashed loop (fault), the bridge's stale
 state, a live loop that missed its period (watchdog), unknown space slowing the base (one per episode,
-`app/runtime/unknown_ahead.py`), a camera rate the live mapping cannot keep (each frame it skipped). Each kind
+`app/runtime/unknown_ahead.py`), a camera rate the live mapping cannot keep (each frame it skipped), a pose estimate
+the loop does not trust (one per episode, `core/localization/health.py`). Each kind
 keeps its count, first and last time and last message; the log is thread-safe (the loops and the bridge record
 from their own threads).
 """
@@ -27,6 +28,7 @@ class ProblemKind(StrEnum):
     UNKNOWN_SPACE = "unknown_space"
     ANCHORED_TARGET = "anchored_target"
     FRAMES_SKIPPED = "frames_skipped"
+    LOCALIZATION = "localization"
 
     @property
     def label(self) -> str:
@@ -41,13 +43,15 @@ _LABELS = {ProblemKind.QP_FAILURE: "QP failures", ProblemKind.FALLBACK: "fallbac
            ProblemKind.SLOW_SOLVE: "slow solves", ProblemKind.FAULT: "faults", ProblemKind.STALE_STATE: "stale state",
            ProblemKind.WATCHDOG: "watchdog events", ProblemKind.UNKNOWN_SPACE: "unknown space ahead",
            ProblemKind.ANCHORED_TARGET: "anchored targets out of reach",
-           ProblemKind.FRAMES_SKIPPED: "depth frames skipped"}
+           ProblemKind.FRAMES_SKIPPED: "depth frames skipped",
+           ProblemKind.LOCALIZATION: "untrusted localization episodes"}
 _SINGULAR = {ProblemKind.QP_FAILURE: "QP failure", ProblemKind.FALLBACK: "fallback plan",
              ProblemKind.SLOW_SOLVE: "slow solve", ProblemKind.FAULT: "fault", ProblemKind.STALE_STATE: "stale state",
              ProblemKind.WATCHDOG: "watchdog event",
              ProblemKind.UNKNOWN_SPACE: "unknown space ahead",
              ProblemKind.ANCHORED_TARGET: "anchored target out of reach",
-             ProblemKind.FRAMES_SKIPPED: "depth frame skipped"}
+             ProblemKind.FRAMES_SKIPPED: "depth frame skipped",
+             ProblemKind.LOCALIZATION: "untrusted localization episode"}
 
 @dataclass(frozen=True)
 class ProblemCount:

@@ -31,7 +31,7 @@ import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported
 from app.map_kind import MapKind
 from app.object_label import shown_id
 from app.object_names import find_object
-from app.runtime.closed_loop import MOVING_STATES, ClosedLoop
+from app.runtime.closed_loop import MOVING_STATES, ClosedLoop, untrusted_notice
 from app.runtime.config import RuntimeConfig
 from app.runtime.live_loops import LiveLoops
 from app.runtime.map_process import MapProcess
@@ -232,7 +232,8 @@ class Runtime:
 
     def status_line(self) -> str:
         loop = self._loop
-        return status_line(loop.run_state, loop.view.status, loop.plan, loop.fault_reason)
+        notice = untrusted_notice(loop.health(loop.state.t), loop.config.htmpc.delta_safe_m)
+        return status_line(loop.run_state, loop.view.status, loop.plan, loop.fault_reason, notice)
 
     # --- run control (UI, bridge, CLI) -------------------------------------------------------------
 

@@ -12,6 +12,7 @@ import numpy as np
 
 from app.runtime.problems import ProblemCount
 from app.runtime.target_marks import TargetMark
+from core.localization import LocalizationHealth
 from core.scene import Box
 from core.types import DepthFrame, ObjectMapSnapshot, Plan, RobotState
 from tasks.anchors import MapObjects
@@ -91,3 +92,7 @@ class Snapshot:
     base_true: np.ndarray | None = None
     """The simulator's true base pose [x, y, yaw] when the state was observed (simulation only; what the robot
     does not know: with the sensor model's drifting odometry it differs from `state.q[:3]`)."""
+    localization: LocalizationHealth | None = None
+    """The pose estimate's health (`core/localization/health.py`): its covariance P and stds σ_xy, σ_yaw, the
+    registrations accepted, rejected and degenerate so far, the age of the last accepted correction, the correction
+    rate, why the pose is untrusted (None: trusted) and the margin the controller adds; None without localization."""

@@ -13,7 +13,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from app.runtime.closed_loop import ClosedLoop
+from app.runtime.closed_loop import ClosedLoop, untrusted_notice
 from app.runtime.snapshot import EDFSlice, RunState, Snapshot
 from app.runtime.target_marks import target_marks
 from core.types import DepthFrame, LocalEDF, ObjectMapSnapshot, Plan
@@ -28,10 +28,13 @@ RUN_STATE_HEADS = {RunState.ESTOP: "EMERGENCY STOP", RunState.PAUSED: "paused", 
                    RunState.FAULT: "FAULT"}
 
 
-def status_line(run_state: RunState, sequence_status: str, plan: Plan | None, fault: str | None) -> str:
+def status_line(run_state: RunState, sequence_status: str, plan: Plan | None, fault: str | None,
+                localization: str | None = None) -> str:
     """One line for the operator: run state, the fault and its remedy, the sequencer's line, a controller
-    that is not solving normally."""
+    that is not solving normally, a pose estimate the loop does not trust (`localization`, `untrusted_notice`)."""
     line = sequence_status
+    if localization:
+        line += f" · {localization}"
     if plan is not None and plan.status.value not in ("ok", "ok_with_slack"):
         line += f" · controller: {plan.status.value} {plan.message}"
     if fault is not None:
@@ -45,16 +48,19 @@ def build_snapshot(loop: ClosedLoop, seq: int, messages: tuple[str, ...], sequen
     r = loop.reading()
     object_map, points = _map_view(loop)
     world = loop.world
+    untrusted = untrusted_notice(r.localization, r.config.htmpc.delta_safe_m)
     return Snapshot(
         seq=seq, wall_time=time.time(), state=r.state, run_state=r.run_state,
-        status=status_line(r.run_state, r.view.status, r.plan, r.fault), boxes=world.boxes() if world else (),
+        status=status_line(r.run_state, r.view.status, r.plan, r.fault, untrusted),
+        boxes=world.boxes() if world else (),
         plan=r.plan, base_path=r.view.path, object_map=object_map, map_points=points, edf_slice=edf_slice(r.edf),
         clouds=clouds(r.frames), progress=r.view.progress, active_index=r.view.index,
         sequence_version=sequence_version, min_distance_m=r.min_distance_m,
         collisions=len(world.collisions) if world else 0, timings_ms=r.timings_ms, map_kind=r.config.map_kind,
         constraint=r.config.constraint, speed=r.config.speed, messages=messages, fault=r.fault, command=r.command,
         depth_frames=r.frames, problems=loop.problems.counts(), targets=target_marks(r.sequence, r.view.progress),
-        anchors=r.objects, base_estimate=r.base_estimate, base_true=r.base_true)
+        anchors=r.objects, base_estimate=r.base_estimate, base_true=r.base_true,
+        localization=r.localization)
 
 
 def _map_view(loop: ClosedLoop) -> tuple[ObjectMapSnapshot | None, np.ndarray | None]:

@@ -1,6 +1,8 @@
-"""Live monitoring plots: solve and mapping time, task error per level, clearance and E[v] per object, over the
-whole run: the last `WINDOW` rows at full rate, the older ones thinned to at most `OLDER_MAX` (every other one
-dropped each time they reach it), so a run stays in the monitor after it ends."""
+"""Live monitoring plots: solve and mapping time, task error per level, clearance and E[v] per object, and with
+localization its health (position and heading error against the truth in simulation, corrections per second,
+rejected and degenerate registrations so far), over the whole run: the last `WINDOW` rows at full rate, the
+older ones thinned to at most `OLDER_MAX` (every other one dropped each time they reach it), so a run stays in
+the monitor after it ends."""
 
 from __future__ import annotations
 
@@ -94,6 +96,9 @@ class MonitorPanel:
         self.errors: viser.GuiUplotHandle | None = None
         self.clearance: viser.GuiUplotHandle | None = None
         self.consistency: viser.GuiUplotHandle | None = None
+        self.pose_error: viser.GuiUplotHandle | None = None
+        self.corrections: viser.GuiUplotHandle | None = None
+        """Localization's plots: shown once a snapshot carries `localization` (a run without it shows none)."""
         self._obj_ids: list[int] = []
         self._names: dict[int, str] = {}
         """The operator's names by map id ('#4 shelf' in the legend)."""
@@ -118,6 +123,16 @@ class MonitorPanel:
                                                 title="E[v] per object (map id)", scales=scales, aspect=2.0,
                                                 legend=LEGEND, axes=_axes("E[v] (probability)"))
         self._legend = tuple(self.object_labels())
+        self.pose_error = server.gui.add_uplot(
+            empty, _series(["position error (m)", "heading error (deg)"]),
+            title="Pose error against the truth (simulation)", scales=scales, aspect=2.0, legend=LEGEND,
+            axes=_axes("error (m, deg)"))
+        self.corrections = server.gui.add_uplot(
+            (np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1)),
+            _series(["accepted per s", "rejected (count)", "degenerate (count)"]),
+            title="Localization: corrections per second, rejected and degenerate registrations", scales=scales,
+            aspect=2.0, legend=LEGEND, axes=_axes("rate (1/s), count"))
+        self.pose_error.visible = self.corrections.visible = False
 
     def object_labels(self) -> list[str]:
         """The E[v] plot's series names: each object's map label ('#4', '#4 shelf' once named), '—' for a series
@@ -164,10 +179,12 @@ class MonitorPanel:
                 self._obj_ids.append(o.id)
         self.rows.append((snap.state.t, snap.timings_ms.get("solve", np.nan), snap.timings_ms.get("mapping", np.nan),
                           errs[0] if errs else np.nan, errs[1] if len(errs) > 1 else np.nan, snap.min_distance_m,
-                          [ev.get(i, np.nan) for i in self._obj_ids] + [np.nan] * (MAX_OBJECTS - len(self._obj_ids))))
+                          [ev.get(i, np.nan) for i in self._obj_ids] + [np.nan] * (MAX_OBJECTS - len(self._obj_ids)),
+                          localization_row(snap)))
 
     def _plot(self) -> None:
-        if self.solve is None or self.errors is None or self.clearance is None or self.consistency is None:
+        if self.solve is None or self.errors is None or self.clearance is None or self.consistency is None or \
+                not self.rows:
             return
         cols = list(zip(*self.rows.rows(), strict=True))
         t = np.asarray(cols[0], float)
@@ -180,3 +197,27 @@ class MonitorPanel:
         if legend != self._legend:
             self._legend = legend
             self.consistency.series = _series(list(legend))
+        loc = np.asarray(cols[7], float)
+        shown = not np.all(np.isnan(loc))  # localization in this run
+        if self.pose_error is None or self.corrections is None:
+            return
+        if self.pose_error.visible != shown:
+            self.pose_error.visible = self.corrections.visible = shown
+        if not shown:
+            return
+        self.pose_error.data = (t, _finite(loc[:, 0]), _finite(loc[:, 1]))
+        self.corrections.data = (t, _finite(loc[:, 2]), _finite(loc[:, 3]), _finite(loc[:, 4]))
+
+
+def localization_row(snap: Snapshot) -> tuple[float, float, float, float, float]:
+    """(position error m, heading error deg, corrections accepted per s, rejected, degenerate so far); the errors
+    against the truth in simulation only (NaN otherwise), all NaN without localization."""
+    health = snap.localization
+    if health is None:
+        return np.nan, np.nan, np.nan, np.nan, np.nan
+    position = heading = np.nan
+    if snap.base_estimate is not None and snap.base_true is not None:
+        d = snap.base_estimate - snap.base_true
+        position = float(np.hypot(d[0], d[1]))
+        heading = float(np.degrees(abs((d[2] + np.pi) % (2 * np.pi) - np.pi)))
+    return position, heading, health.accepted_per_s, float(health.rejected), float(health.degenerate)

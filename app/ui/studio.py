@@ -17,6 +17,7 @@ from app.ui.map_view import MapView
 from app.ui.monitor_panel import MonitorPanel
 from app.ui.notify import notify_all
 from app.ui.plan_view import PlanView
+from app.ui.pose_view import PoseView
 from app.ui.problems_panel import ProblemsPanel
 from app.ui.progress_panel import ProgressPanel
 from app.ui.robot_view import RobotView
@@ -74,6 +75,7 @@ class Studio:
         self.robot_view = RobotView(self.server, runtime.robot, meshes=view.robot_meshes)
         self.map_view = MapView(self.server, runtime.robot, runtime.config.mapping)
         self.plan_view = PlanView(self.server)
+        self.pose_view = PoseView(self.server, runtime.robot.params.base_size_m)
         self.progress = ProgressPanel(self.server)
         self.problems = ProblemsPanel(self.server)
         self.monitor = MonitorPanel(self.server)
@@ -133,6 +135,7 @@ class Studio:
                 self.scene_view.update(snap.boxes)
                 self.map_view.update(snap)
                 self.plan_view.update(snap)
+                self.pose_view.update(snap)
             self.progress.update(snap)
             self.problems.update(snap)
             self.monitor.update(snap)

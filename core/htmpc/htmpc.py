@@ -11,7 +11,7 @@ moving, `sqp_step_tol`), each damped (`sqp_damping`) and bounded by an adaptive 
 
 Public API: `HTMPC(robot, params).solve(state, refs, edf) -> Plan` (edf: anything with vectorised
 `distance(p)` and `gradient(p)`, e.g. `core.types.LocalEDF`, or None for no collision rows), `reset()`,
-and `enforce_timeout` (False in lockstep runs: simulated time waits for the solver). A failed QP, an
+`set_delta_safe(m)` and `enforce_timeout` (False in lockstep runs: simulated time waits for the solver). A failed QP, an
 exception of any type, a non-finite state or map, a slow solve or an out-of-limit solution gives a braking
 plan along the last plan handed out (status FALLBACK or STOPPING, why in `reason` (a `PlanReason`), the words
 in `message`; safety.py);
@@ -157,6 +157,18 @@ class HTMPC:
         self.enforce_timeout = True
         """Live runs discard slow solves (`solve_timeout_ms`); lockstep runs turn this off to stay
         deterministic (simulated time does not advance while the solver works)."""
+
+    @property
+    def delta_safe_m(self) -> float:
+        """The safety margin delta_safe the collision rows keep now (m)."""
+        return self.collision.delta_safe_m
+
+    def set_delta_safe(self, delta_safe_m: float) -> None:
+        """Keep `delta_safe_m` from the next step on (the closed loop grows it by the pose's uncertainty:
+        `core/localization/health.py`); `HTMPCParams.delta_safe_m` stays what was configured."""
+        if not (np.isfinite(delta_safe_m) and delta_safe_m >= 0.0):
+            raise ValueError(f"delta_safe must be a finite distance >= 0 m, got {delta_safe_m}")
+        self.collision.delta_safe_m = float(delta_safe_m)
 
     def reset(self) -> None:
         """Forget the warm start (e.g. after a reset of the world)."""

@@ -23,9 +23,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from core.localization import degeneracy, gates, registration, scan, se2
+from core.localization import degeneracy, gates, health, registration, scan, se2
 from core.localization.frozen_surfaces import FrozenSurfaces
 from core.localization.gates import Verdict
+from core.localization.health import LocalizationHealth
 from core.localization.pose_filter import PoseFilter
 from core.localization.reference import FLOOR_ID, Reference, build
 from core.params import LocalizationParams
@@ -33,6 +34,8 @@ from core.types import DepthFrame, LocalizationStatus, PoseEstimate, ReferenceSu
 
 DEGENERATE = "degenerate"
 """`Localizer.counts` key: accepted corrections with at least one direction masked."""
+OUTCOMES = {Verdict.ACCEPTED: "accepted", Verdict.DEGENERATE: "degenerate", Verdict.NO_REFERENCE: "no_reference"}
+"""`Localizer.tally` key of a verdict; every other verdict is a gate's refusal, "rejected"."""
 
 
 @dataclass(frozen=True)
@@ -57,8 +60,11 @@ class Correction:
 class Localizer:
     """Odometry prediction, gated scan-to-map corrections, and the estimate T_world←odom."""
 
-    def __init__(self, params: LocalizationParams | None = None) -> None:
+    def __init__(self, params: LocalizationParams | None = None, start_t: float = 0.0) -> None:
+        """`start_t`: robot time (s) the start pose (the world frame) was known at; the age of the first correction
+        counts from it."""
         self.params = p = params or LocalizationParams()
+        self.start_t = start_t
         self.filter = PoseFilter(p.initial_sigma_m, p.initial_sigma_rad)
         self.lock = threading.Lock()
         self.counts: Counter[str] = Counter()
@@ -70,6 +76,10 @@ class Localizer:
         self._excluded: dict[int, float] = {}
         self._evidence: list[int] = []
         self._target: tuple[ReferenceSurface | None, tuple, Reference, registration.Target] | None = None
+        self.tally: Counter[str] = Counter()
+        """Registrations by outcome for the operator (`health`): accepted, rejected, degenerate, no_reference."""
+        self._accepted_t: deque[float] = deque(maxlen=1000)
+        """Frame times of recent accepted corrections (the correction rate)."""
         self.frozen = FrozenSurfaces(p.freeze_sigma_m, p.freeze_grow_m) if p.freeze_reference else None
         """The trusted surfaces where they were when first trusted (`frozen_surfaces.py`); None: the map's
         surfaces as they are now."""
@@ -102,6 +112,26 @@ class Localizer:
     def estimate(self, t: float, odom_pose: np.ndarray) -> PoseEstimate:
         with self.lock:
             return PoseEstimate(t, self.filter.world_pose(odom_pose), self.filter.P.copy(), self.status)
+
+    def health(self, t: float, delta_safe_m: float) -> LocalizationHealth:
+        """The estimate's health at robot time t against the controller's delta_safe (`health.py`)."""
+        p = self.params
+        with self.lock:
+            P = self.filter.P.copy()
+            tally = Counter(self.tally)
+            times = list(self._accepted_t)
+        last = times[-1] if times else None
+        since = t - (self.start_t if last is None else last)
+        sigma = health.position_sigma(P)
+        recent = sum(1 for s in times if t - health.RATE_WINDOW_S < s <= t + 1e-9)
+        reason = health.untrusted_reason(sigma, since, tally["accepted"], tally["rejected"], tally["degenerate"],
+                                         tally["no_reference"], delta_safe_m, p)
+        return LocalizationHealth(
+            t=t, covariance=P, sigma_xy_m=sigma, sigma_yaw_rad=float(np.sqrt(max(P[2, 2], 0.0))),
+            accepted=tally["accepted"], rejected=tally["rejected"], degenerate=tally["degenerate"],
+            no_reference=tally["no_reference"], last_accepted_t=last, since_accepted_s=since,
+            accepted_per_s=recent / health.RATE_WINDOW_S, untrusted=reason,
+            margin_growth_m=health.margin_growth(sigma, delta_safe_m, p))
 
     def wants(self, frame: DepthFrame) -> bool:
         """Whether `frame` is one to register (its camera, and due at `rate_hz`)."""
@@ -232,6 +262,11 @@ class Localizer:
     def _record(self, correction: Correction) -> Correction:
         self.counts[correction.verdict.value] += 1
         self.corrections.append(correction)
+        outcome = OUTCOMES.get(correction.verdict, "rejected")
+        with self.lock:
+            self.tally[outcome] += 1
+            if correction.verdict == Verdict.ACCEPTED:
+                self._accepted_t.append(correction.t)
         return correction
 
 
