@@ -13,6 +13,7 @@ Beside these, `app.recording.foxglove_scene` writes the Foxglove channels the 3D
 | `/map/posterior` | `htmpc.ObjectMap` (`#id name` label, pose, extent, E[v], posterior, status, seen) | object map |
 | `/map/edf_slice` | `htmpc.EDFSlice` | when the controller has an EDF |
 | `/sequence/progress` | `htmpc.Progress` (subtasks, active index, planned base path) | every snapshot |
+| `/localization/health` | `htmpc.LocalizationHealth` (P, σ_xy, σ_yaw, verdicts, corrections) | localization |
 | `/camera/<name>/info` | `htmpc.CameraInfo` (K, T_world_camera, range) | with each depth image |
 | `/run/status` | `htmpc.RunStatus` (run state, status, clearance, timings, problems, messages) | every one, last |
 
@@ -31,6 +32,7 @@ import numpy as np
 from app.object_label import object_label, operator_names
 from app.runtime.problems import ProblemCount, ProblemKind
 from app.runtime.snapshot import EDFSlice, RunState, Snapshot
+from core.localization import LocalizationHealth
 from core.scene import Box
 from core.types import (
     DepthFrame,
@@ -94,6 +96,12 @@ SCHEMAS: dict[str, dict] = {
         "seq": _INT, "wall_time": _NUM, "t": _NUM, "run_state": _STR, "status": _STR, "min_distance_m": _NUM,
         "collisions": _INT, "timings_ms": {"type": "object"}, "map_kind": _STR, "constraint": _STR, "speed": _NUM,
         "messages": {"type": "array", "items": _STR}, "fault": {"type": ["string", "null"]}}),
+    "htmpc.LocalizationHealth": _obj("the base pose estimate's health: covariance P (x, y in m, yaw in rad), stds, "
+                                     "registration verdicts so far, age (s) and rate (1/s) of accepted corrections, "
+                                     "why the pose is untrusted (null: trusted), the margin added to delta_safe (m)", {
+        "t": _NUM, "covariance": _arr(2), "sigma_xy_m": _NUM, "sigma_yaw_rad": _NUM, "accepted": _INT,
+        "rejected": _INT, "degenerate": _INT, "no_reference": _INT, "last_accepted_t": _NUM, "since_accepted_s": _NUM,
+        "accepted_per_s": _NUM, "untrusted": {"type": ["string", "null"]}, "margin_growth_m": _NUM}),
     "htmpc.CameraInfo": _obj("depth camera: pinhole K (px), pose T_world_camera (OpenCV axes), range (m)",
                              {"t": _NUM, "camera": _STR, "K": _arr(2), "T_world_camera": _arr(2), "range_m": _NUM}),
 }
@@ -101,7 +109,7 @@ SCHEMAS: dict[str, dict] = {
 FIXED_TOPICS: dict[str, str] = {
     "/robot/state": "htmpc.RobotState", "/robot/command": "htmpc.JointVelocityCommand", "/plan": "htmpc.Plan",
     "/map/posterior": "htmpc.ObjectMap", "/map/edf_slice": "htmpc.EDFSlice", "/sequence/progress": "htmpc.Progress",
-    STATUS_TOPIC: "htmpc.RunStatus",
+    "/localization/health": "htmpc.LocalizationHealth", STATUS_TOPIC: "htmpc.RunStatus",
 }
 
 
@@ -187,6 +195,9 @@ def snapshot_messages(snap: Snapshot) -> list[tuple[str, dict]]:
         e = snap.edf_slice
         out.append(("/map/edf_slice", {"origin": _list(e.origin), "voxel": e.voxel, "z_m": e.z_m,
                                        "values": _list(e.values, 3)}))
+    if snap.localization is not None:
+        h = snap.localization
+        out.append(("/localization/health", {**_record(h), "covariance": _list(h.covariance)}))
     out.append(("/sequence/progress", {"active_index": snap.active_index, "sequence_version": snap.sequence_version,
                                        "base_path": _list(snap.base_path),
                                        "subtasks": [_record(p) for p in snap.progress]}))
@@ -268,7 +279,13 @@ def snapshot_from_messages(messages: dict[str, dict]) -> Snapshot:
         constraint=run["constraint"], speed=run["speed"],
         command=None if command is None else _np(command["qdot"]), fault=run.get("fault"),
         problems=tuple(_problem(p) for p in run.get("problems", ())),
-        base_estimate=_np_or_none(state.get("base_estimate")), base_true=_np_or_none(state.get("base_true")))))
+        base_estimate=_np_or_none(state.get("base_estimate")), base_true=_np_or_none(state.get("base_true")),
+        localization=_health(messages["/localization/health"]) if "/localization/health" in messages else None)))
+
+
+def _health(h: dict) -> LocalizationHealth:
+    return LocalizationHealth(**{**_known(LocalizationHealth, h), "covariance": _np(h["covariance"]),
+                                 "last_accepted_t": h.get("last_accepted_t")})
 
 
 def depth_frame_from_messages(depth: np.ndarray, info: dict) -> DepthFrame:

@@ -75,6 +75,18 @@ def test_the_robot_state_carries_both_poses_and_the_replay_reads_them(localized)
     np.testing.assert_allclose(last.base_true, states[-1]["base_true"])
 
 
+def test_the_pose_health_is_recorded_and_the_replay_reads_it(localized) -> None:
+    health = _messages(localized, "/localization/health")
+    assert len(health) > 15 and all(np.array(h["covariance"]).shape == (3, 3) for h in health)
+    verdicts = ("accepted", "rejected", "degenerate", "no_reference")
+    assert sum(health[-1][k] for k in verdicts) > 0, "the frames localization wanted got their verdicts"
+    last = read_recording(localized)[-1]
+    assert last.localization is not None
+    np.testing.assert_allclose(last.localization.covariance, health[-1]["covariance"], atol=1e-9)
+    assert last.localization.sigma_xy_m == pytest.approx(health[-1]["sigma_xy_m"])
+    assert last.localization.untrusted == health[-1]["untrusted"]
+
+
 def test_without_localization_the_true_base_is_the_state_when_sensing_is_exact() -> None:
     """The ground-truth map senses exactly: the truth taken at the observation is the state's own base pose
     (the truth is read when the state is, not when the snapshot goes out)."""
