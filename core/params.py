@@ -394,11 +394,10 @@ class MappingParams:
     the paper's symbol, not a knob."""
 
     # --- unknown space (our addition to the paper: core/mapping/unknown_floor.py) --------------------------
-    unknown_space: UnknownSpaceKind = "free"
-    """Off ('free', as the paper) by default for now: the simulated floor ends at the room's edge, and unknown
-    space there held the base short of goals near it (a goal at x = 6 m was never reached). 'obstacle': floor
-    cells that rays should have met within `unknown_floor_range_m` and that returned no depth are columns in
-    the EDF (so the CBF slows and stops the base before them) and in the planner's occupancy."""
+    unknown_space: UnknownSpaceKind = "obstacle"
+    """'obstacle' (our addition): floor cells that rays should have met within `unknown_floor_range_m` and that
+    returned no depth are columns in the EDF (so the CBF slows and stops the base before them) and in the
+    planner's occupancy. 'free': the paper's map, where no return is no evidence for driving either."""
     unknown_cameras: tuple[str, ...] = ("base",)
     """The cameras whose frames give the evidence. Not the hand camera: passing close to boxes, its rays are cut
     short by its near clip (0.1 m), and on the aisle's first lap it marked 850 cells where nothing was dark
