@@ -409,9 +409,13 @@ class MappingParams:
     """... and beyond this depth (a camera's near clip, 0.1 m, also reads 0: a hand close to the floor)."""
     unknown_cell_m: float = 0.1
     """Floor cells of the evidence (m)."""
-    unknown_min_rays: int = 3
-    """A cell turns unknown when, in one frame, at least this many of the rays aimed at it returned nothing and
-    they are most of those rays (2 % random dropouts never are); floor seen there again clears it."""
+    unknown_evidence_rays: int = 5
+    """A cell turns unknown when its aimed rays that returned nothing outnumber those that returned something by
+    this many, summed over frames (`unknown_floor.py`); floor seen there takes it back. A dark box's shadow gets
+    there in one frame (every ray misses); the 2 % random dropouts, at 5 rays a cell at 2.5 m, once an hour in
+    the camera's 4,000 cells a frame at 10 Hz (3 in one frame, the earlier rule: 2 a minute)."""
+    unknown_evidence_max_rays: int = 10
+    """The evidence is clipped at this many rays, so that floor seen again clears a cell within a frame or two."""
     unknown_height_m: float = 1.0
     """Height of an unknown column (m): above the base's rack (0.92 m), so no part of the base passes over."""
 

@@ -44,8 +44,7 @@ class ScenePoints:
         """(frame, points) for every frame of `obs`; the time spent is added to timings['points'] (ms)."""
         for frame in obs.frames:
             t0 = time.perf_counter()
-            q = obs.state.q - obs.state.v * (obs.state.t - frame.t)
-            points = self.of_frame(frame, self.self_filter.body(q))
+            points = self.of_frame(frame, self.self_filter.body(obs.q_at(frame.t)))
             timings["points"] = timings.get("points", 0.0) + (time.perf_counter() - t0) * 1e3
             yield frame, points
 
