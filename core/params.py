@@ -257,9 +257,9 @@ class MappingParams:
     """A pixel whose 3 × 3 neighbourhood spans more depth than jump + jump_per_m · z (+ 6 noise std) is a
     flying pixel at a depth edge and is not used (`core/mapping/flying_pixels.py`)."""
     flying_pixel_min_support: int = 3
-    """... and so is a pixel beside a silent one with fewer of its 8 neighbours on its surface (within 3√2
-    noise std + `flying_pixel_support_slope` · z): a mixed pixel against a background beyond the range, which
-    the span test cannot see. A box's corner pixel has 3. 0 switches the test off."""
+    """... and so is a pixel beside a silent one and behind a nearer one with fewer of its 8 neighbours on its
+    surface (within 3√2 noise std + `flying_pixel_support_slope` · z): a mixed pixel against a background beyond
+    the range, which the span test cannot see. A box's corner pixel has 3. 0 switches the test off."""
     flying_pixel_support_slope: float = 0.03
     """Depth step (m per m of depth) between neighbouring pixels of one surface at a grazing angle: up to
     ~82° from its normal at the cameras' 4.2 mrad pixels (0.01, 67°, dropped an aisle wall's far grazing
