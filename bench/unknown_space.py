@@ -10,7 +10,8 @@ Figures (lockstep, object map, the sensor model on, reference speed 1 m/s):
   the wall under 0.05 m/s), `stop_min_distance_m` the smallest over the run, `stop_collision_events` contacts;
 - `free_collision_events`, `free_min_distance_m`: the same run with unknown space free (the paper);
 - `unknown_integrate_cpu_ms`, `unknown_edf_cpu_ms`: median CPU time (thread time: a loaded machine inflates wall
-  time) of one frame's evidence and of joining the columns to the field.
+  time) of one frame's evidence (its rays checked against the robot's body too) and of joining the columns to
+  the field.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import numpy as np
 import core.sim  # noqa: F401  (GL backend first)
 from app.runtime import Runtime, RuntimeConfig
 from bench.report import bench_args, percentile, write_result
+from core.mapping.self_filter import SelfFilter
 from core.mapping.unknown_floor import UnknownFloor, unknown_columns
 from core.params import MappingParams, SequencerParams
 from core.scene import Box, Scene
@@ -57,12 +59,13 @@ def evidence_cost(rt: Runtime, repeats: int) -> dict[str, float]:
     params = MappingParams()
     frames = [f for f in rt.latest_frames.values() if f.camera in params.unknown_cameras]
     floor = UnknownFloor(params)
+    body = SelfFilter(rt.robot, params.self_filter_margin_m).body(rt.state.q)
     integrate, join = [], []
     edf = rt.closed_loop.last_edf
     for _ in range(repeats):
         for frame in frames:
             t0 = time.thread_time()
-            floor.integrate(frame)
+            floor.integrate(frame, body)
             integrate.append((time.thread_time() - t0) * 1e3)
         if edf is not None:
             t0 = time.thread_time()

@@ -143,6 +143,9 @@ class SimParams:
     """500 Hz physics (paper: commands at 100 Hz)."""
     walls: bool = False
     room_half_size_m: float = 6.0
+    floor_beyond_room_m: float = 10.0
+    """Without walls the floor reaches this far past the room (m), beyond every camera's range: a floor that
+    ended in view would read as no return, which the unknown-space rule rightly treats as not free."""
     hand_camera: CameraParams = field(default_factory=CameraParams)
     base_camera: CameraParams = field(default_factory=CameraParams)
     sensor: SensorParams = field(default_factory=SensorParams)
@@ -253,6 +256,14 @@ class MappingParams:
     flying_pixel_jump_per_m: float = 0.05
     """A pixel whose 3 × 3 neighbourhood spans more depth than jump + jump_per_m · z (+ 6 noise std) is a
     flying pixel at a depth edge and is not used (`core/mapping/flying_pixels.py`)."""
+    flying_pixel_min_support: int = 3
+    """... and so is a pixel beside a silent one and behind a nearer one with fewer of its 8 neighbours on its
+    surface (within 3√2 noise std + `flying_pixel_support_slope` · z): a mixed pixel against a background beyond
+    the range, which the span test cannot see. A box's corner pixel has 3. 0 switches the test off."""
+    flying_pixel_support_slope: float = 0.03
+    """Depth step (m per m of depth) between neighbouring pixels of one surface at a grazing angle: up to
+    ~82° from its normal at the cameras' 4.2 mrad pixels (0.01, 67°, dropped an aisle wall's far grazing
+    stretch near the range and read the EDF 5.6 cm beyond the truth in `test_map_driving.py`)."""
     floor_snap_m: float = 0.15
     """An object's fitted box whose lowest surface point is within this height of the floor is extended down
     to it (the floor filter cuts a box's bottom few centimetres). Lower parts hidden from view are completed
@@ -383,11 +394,10 @@ class MappingParams:
     the paper's symbol, not a knob."""
 
     # --- unknown space (our addition to the paper: core/mapping/unknown_floor.py) --------------------------
-    unknown_space: UnknownSpaceKind = "free"
-    """Off ('free', as the paper) by default for now: the simulated floor ends at the room's edge, and unknown
-    space there held the base short of goals near it (a goal at x = 6 m was never reached). 'obstacle': floor
-    cells that rays should have met within `unknown_floor_range_m` and that returned no depth are columns in
-    the EDF (so the CBF slows and stops the base before them) and in the planner's occupancy."""
+    unknown_space: UnknownSpaceKind = "obstacle"
+    """'obstacle' (our addition): floor cells that rays should have met within `unknown_floor_range_m` and that
+    returned no depth are columns in the EDF (so the CBF slows and stops the base before them) and in the
+    planner's occupancy. 'free': the paper's map, where no return is no evidence for driving either."""
     unknown_cameras: tuple[str, ...] = ("base",)
     """The cameras whose frames give the evidence. Not the hand camera: passing close to boxes, its rays are cut
     short by its near clip (0.1 m), and on the aisle's first lap it marked 850 cells where nothing was dark
@@ -399,9 +409,13 @@ class MappingParams:
     """... and beyond this depth (a camera's near clip, 0.1 m, also reads 0: a hand close to the floor)."""
     unknown_cell_m: float = 0.1
     """Floor cells of the evidence (m)."""
-    unknown_min_rays: int = 3
-    """A cell turns unknown when, in one frame, at least this many of the rays aimed at it returned nothing and
-    they are most of those rays (2 % random dropouts never are); floor seen there again clears it."""
+    unknown_evidence_rays: int = 5
+    """A cell turns unknown when its aimed rays that returned nothing outnumber those that returned something by
+    this many, summed over frames (`unknown_floor.py`); floor seen there takes it back. A dark box's shadow gets
+    there in one frame (every ray misses); the 2 % random dropouts, at 5 rays a cell at 2.5 m, once an hour in
+    the camera's 4,000 cells a frame at 10 Hz (3 in one frame, the earlier rule: 2 a minute)."""
+    unknown_evidence_max_rays: int = 10
+    """The evidence is clipped at this many rays, so that floor seen again clears a cell within a frame or two."""
     unknown_height_m: float = 1.0
     """Height of an unknown column (m): above the base's rack (0.92 m), so no part of the base passes over."""
 

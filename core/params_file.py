@@ -48,7 +48,7 @@ POSITIVE = frozenset({
     "RobotParams.base_xy_limit_m", "RobotParams.base_size_m",
     "CameraParams.width_px", "CameraParams.height_px", "CameraParams.fovy_deg", "CameraParams.range_m",
     "CameraParams.near_m", "CameraParams.rate_hz",
-    "SimParams.timestep_s", "SimParams.room_half_size_m", "SimParams.box_pool",
+    "SimParams.timestep_s", "SimParams.room_half_size_m", "SimParams.floor_beyond_room_m", "SimParams.box_pool",
     "HTMPCParams.N", "HTMPCParams.dt_s", "HTMPCParams.gamma", "HTMPCParams.sqp_iters",
     "HTMPCParams.sqp_iters_on_switch", "HTMPCParams.control_rate_hz", "HTMPCParams.command_rate_hz",
     "HTMPCParams.control_max_rate_hz",

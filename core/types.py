@@ -68,6 +68,11 @@ class Observation:
     odometry: Odometry | None
     """None where no odometry is reported (frames handed to the map on their own)."""
 
+    def q_at(self, t: float) -> np.ndarray:
+        """The configuration at time t (a frame's exposure), from the state and its velocity: a frame is up to a
+        camera period older than the state that comes with it."""
+        return self.state.q - self.state.v * (self.state.t - t)
+
 
 class ObjectStatus(StrEnum):
     """Life cycle of a mapped object (POCD)."""

@@ -25,22 +25,22 @@ def make_map(kind: MapKind, robot: RobotModel, world: SimWorld | None, params: M
     if kind == "object":
         from core.mapping import ObjectMapper
 
-        return _with_unknown_space(ObjectMapper(robot, params), params)
+        return _with_unknown_space(ObjectMapper(robot, params), robot, params)
     if kind == "voxel":
         from core.mapping import VoxelMap
 
-        return _with_unknown_space(VoxelMap(robot, params), params)
+        return _with_unknown_space(VoxelMap(robot, params), robot, params)
     raise ValueError(f"unknown map kind {kind!r}: object, voxel or ground_truth")  # pyright: ignore[reportUnreachable]  (untyped callers)
 
 
-def _with_unknown_space(world_map: WorldMap, params: MappingParams) -> WorldMap:
+def _with_unknown_space(world_map: WorldMap, robot: RobotModel, params: MappingParams) -> WorldMap:
     """A perceived map with unknown space as an obstacle when `params.unknown_space` says so (the ground truth
     needs none: it knows every box, dark ones too)."""
     if params.unknown_space != "obstacle":
         return world_map
     from core.mapping.unknown_space_map import UnknownSpaceMap
 
-    return UnknownSpaceMap(world_map, params)
+    return UnknownSpaceMap(world_map, robot, params)
 
 
 def make_controller(robot: RobotModel, params: HTMPCParams) -> HTMPC:

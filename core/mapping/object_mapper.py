@@ -178,8 +178,7 @@ class ObjectMapper:
             for seen in matches:
                 self._register(seen)
         with _timed(timings, "consistency"):
-            view = FrameView.of(frame, p.visibility_margin_m, p.depth_noise_coeff_m, p.range_m, p.through_patch_px,
-                                p.floor_height_m)
+            view = FrameView.of(frame, p)
             matched = {seen.obj.id for seen in matches}
             for seen in matches:
                 self._update_matched(seen, view)

@@ -16,7 +16,7 @@ import numpy as np
 
 from core.mapping.depth_points import unproject_frame
 from core.mapping.floor import above_floor, floor_threshold
-from core.mapping.flying_pixels import without_flying_pixels
+from core.mapping.flying_pixels import EdgeFilter, without_flying_pixels
 from core.mapping.self_filter import RobotBody, SelfFilter
 from core.params import MappingParams
 from core.robot.model import RobotModel
@@ -29,12 +29,12 @@ class ScenePoints:
     def __init__(self, robot: RobotModel, params: MappingParams) -> None:
         self.params = params
         self.self_filter = SelfFilter(robot, params.self_filter_margin_m)
+        self.edges = EdgeFilter.of(params)
 
     def of_frame(self, frame: DepthFrame, body: RobotBody) -> np.ndarray:
         """World points (N×3) of one frame without floor and robot (its body from `SelfFilter.body`)."""
         p = self.params
-        depth = without_flying_pixels(frame.depth, p.pixel_stride, p.flying_pixel_jump_m, p.flying_pixel_jump_per_m,
-                                      p.depth_noise_coeff_m)
+        depth = without_flying_pixels(frame.depth, p.pixel_stride, self.edges)
         fp = unproject_frame(depth, frame.K, frame.T_world_camera, p.pixel_stride, min(p.range_m, frame.range_m))
         keep = above_floor(fp.points, floor_threshold(fp.depth, fp.ray_dz, p.floor_height_m, p.depth_noise_coeff_m))
         pts = fp.points[keep]
@@ -44,8 +44,7 @@ class ScenePoints:
         """(frame, points) for every frame of `obs`; the time spent is added to timings['points'] (ms)."""
         for frame in obs.frames:
             t0 = time.perf_counter()
-            q = obs.state.q - obs.state.v * (obs.state.t - frame.t)
-            points = self.of_frame(frame, self.self_filter.body(q))
+            points = self.of_frame(frame, self.self_filter.body(obs.q_at(frame.t)))
             timings["points"] = timings.get("points", 0.0) + (time.perf_counter() - t0) * 1e3
             yield frame, points
 

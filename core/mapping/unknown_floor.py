@@ -5,11 +5,17 @@ for driving. A surface that never returns depth (black, glossy, glass) is never 
 cutoff and a goal behind it drives the base into it. A depth camera looking down at the floor does see it,
 indirectly: a ray that should meet the floor within range and returns nothing met something on the way.
 
-`UnknownFloor` keeps that evidence on floor cells (`unknown_cell_m`): in each frame, a cell whose expected
-floor rays mostly returned nothing (at least `unknown_min_rays`) turns unknown; a cell where the floor was
-seen turns free again. Random dropouts (2 %) are never most of a cell's rays (rays that meet a surface that
-answers, the top of an ordinary box, count as answered); a dark box leaves the
-floor cells behind its face unknown, from the face itself on, while the floor before it stays seen.
+`UnknownFloor` keeps that evidence on floor cells (`unknown_cell_m`): each frame adds to a cell the number of
+rays aimed at it that returned nothing, less those that returned something (the floor, or the top of an
+ordinary box in front of it: a surface that answers); a cell whose sum reaches `unknown_evidence_rays` is
+unknown, and floor seen there takes it back (the sum is kept within ± `unknown_evidence_max_rays`, and cells
+at or below 0 are forgotten). A dark box's shadow gets there in one frame, every ray missing; the 2 % random
+dropouts, at 5 rays a cell 2.5 m away, almost never (a rule of 3 misses in one frame marked cells at random
+about twice a minute, and a pick in the aisle laps timed out 10° short beside one). A dark box leaves the
+floor cells behind its face unknown, from the face itself on, while the floor before it stays seen. A ray
+that meets the robot's own body (its collision spheres and base boxes, `self_filter.RobotBody`) is no
+evidence either way: the arm reaching down in front of the base camera is nearer than its near clip and
+reads 0, which marked the floor of a pick's far side unknown (the aisle laps' stop A: 400 cells).
 
 `unknown_columns` turns the cells into a signed distance to columns from the floor up to `unknown_height_m`
 on a `LocalEDF`'s lattice, so that the map can hand them to the controller inside its field.
@@ -23,6 +29,7 @@ import numpy as np
 
 from core.mapping.depth_points import pixel_rays
 from core.mapping.local_edf import signed_distance
+from core.mapping.self_filter import RobotBody
 from core.params import MappingParams
 from core.types import DepthFrame, LocalEDF, UnknownSpace
 
@@ -34,14 +41,22 @@ KEY_OFFSET = 1 << 23
 
 
 class UnknownFloor:
-    """The unknown floor cells, as sorted packed integer keys of (i, j) = round(xy / cell)."""
+    """The floor cells with evidence of no return: sorted packed integer keys of (i, j) = round(xy / cell) and
+    their evidence (rays)."""
 
     def __init__(self, params: MappingParams) -> None:
         self.params = params
-        self.keys = np.zeros(0, dtype=np.int64)
+        self._cells = np.zeros(0, dtype=np.int64)
+        self._evidence = np.zeros(0, dtype=np.int32)
 
-    def integrate(self, frame: DepthFrame) -> None:
-        """Mark the cells whose expected floor rays returned nothing; clear those where the floor was seen."""
+    @property
+    def keys(self) -> np.ndarray:
+        """The unknown cells' keys (sorted)."""
+        return self._cells[self._evidence >= self.params.unknown_evidence_rays]
+
+    def integrate(self, frame: DepthFrame, body: RobotBody | None = None) -> None:
+        """Mark the cells whose expected floor rays returned nothing; clear those where the floor was seen. Rays
+        that meet `body` (the robot at the frame's exposure) are left out."""
         p = self.params
         if frame.camera not in p.unknown_cameras:
             return
@@ -53,6 +68,9 @@ class UnknownFloor:
         z = frame.depth[v, u]
         expected = np.divide(-t[2], dz, out=np.full(len(dz), np.inf, dtype=np.float32), where=dz < 0.0)
         aimed = (expected >= p.unknown_floor_min_depth_m) & (expected <= min(p.unknown_floor_range_m, frame.range_m))
+        if body is not None:
+            idx = np.nonzero(aimed)[0]
+            aimed[idx[meets_body(t, rays[idx] @ R.T, expected[idx], body)]] = False
         floor_xy = t[:2] + (rays[aimed] @ R[:2].T) * expected[aimed, None]  # where the floor should have been
         returned = z > 0.0
         on_floor = t[2] + dz[returned] * z[returned] < p.floor_height_m
@@ -66,14 +84,19 @@ class UnknownFloor:
     def _update(self, aimed: np.ndarray, missed: np.ndarray, hits: np.ndarray) -> None:
         """`aimed`: the cells of the rays aimed at the floor, `missed` which of them returned nothing; `hits`:
         the cells of floor points seen."""
+        p = self.params
         keys, index = np.unique(np.concatenate([aimed, hits]), return_inverse=True)
         n_aimed = np.bincount(index[:len(aimed)], minlength=len(keys))
         n_miss = np.bincount(index[:len(aimed)][missed], minlength=len(keys))
         n_hit = np.bincount(index[len(aimed):], minlength=len(keys))
-        # most rays aimed there got nothing back (those that met a surface that answers did get something)
-        unknown = keys[(n_miss >= self.params.unknown_min_rays) & (2 * n_miss > n_aimed)]
-        seen = keys[n_hit >= np.maximum(n_miss, 1)]
-        self.keys = np.union1d(np.setdiff1d(self.keys, seen, assume_unique=True), unknown)
+        delta = n_miss - np.maximum(n_aimed - n_miss, n_hit)  # an aimed ray that saw the floor is one of the hits
+        cells = np.union1d(self._cells, keys)
+        evidence = np.zeros(len(cells), dtype=np.int32)
+        evidence[np.searchsorted(cells, self._cells)] = self._evidence
+        evidence[np.searchsorted(cells, keys)] += delta.astype(np.int32)
+        np.clip(evidence, None, p.unknown_evidence_max_rays, out=evidence)
+        keep = evidence > 0
+        self._cells, self._evidence = cells[keep], evidence[keep]
 
     def centres(self) -> np.ndarray:
         """World x-y of the unknown cells' centres (K×2)."""
@@ -84,6 +107,30 @@ class UnknownFloor:
         """The unknown cells as the narrow type the planner and the operator's notice read."""
         p = self.params
         return UnknownSpace(centres=self.centres(), cell_m=p.unknown_cell_m, height_m=p.unknown_height_m)
+
+
+def meets_body(origin: np.ndarray, dirs: np.ndarray, depth: np.ndarray, body: RobotBody) -> np.ndarray:
+    """Do the rays origin + s · dirs (N×3, world, per metre of planar depth) meet the body before s = depth?"""
+    d = dirs.astype(float)
+    w = body.centres - origin  # M×3
+    along = d @ w.T  # N×M: s · |d|² at the closest approach
+    dd = np.einsum("ij,ij->i", d, d)[:, None]
+    dist2 = np.einsum("ij,ij->i", w, w)[None, :] - along**2 / dd
+    hit = ((dist2 <= body.radii**2) & (along > 0.0) & (along < depth[:, None] * dd)).any(axis=1)
+    x, y, yaw = body.base_pose
+    c, s = np.cos(yaw), np.sin(yaw)
+    rot = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])  # world → base frame
+    o = rot @ (origin - np.array([x, y, 0.0]))
+    local = d @ rot.T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for lo, hi in zip(body.box_lo, body.box_hi, strict=True):
+            t1, t2 = (lo - o) / local, (hi - o) / local
+            # a ray parallel to a slab is inside it for every s or for none
+            t1 = np.where(local == 0.0, np.where((o >= lo) & (o <= hi), -np.inf, np.inf), t1)
+            t2 = np.where(local == 0.0, np.where((o >= lo) & (o <= hi), np.inf, -np.inf), t2)
+            near, far = np.minimum(t1, t2).max(axis=1), np.maximum(t1, t2).min(axis=1)
+            hit |= (near <= far) & (far > 0.0) & (near < depth)
+    return hit
 
 
 def unknown_columns(edf: LocalEDF, space: UnknownSpace) -> LocalEDF:

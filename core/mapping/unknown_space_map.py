@@ -14,18 +14,21 @@ from typing import Any
 
 import numpy as np
 
+from core.mapping.self_filter import SelfFilter
 from core.mapping.unknown_floor import UnknownFloor, unknown_columns
 from core.mapping.world_map import WorldMap
 from core.params import MappingParams
+from core.robot.model import RobotModel
 from core.types import LocalEDF, ObjectMapSnapshot, Observation
 
 
 class UnknownSpaceMap:
     """`inner` behind the `WorldMap` interface, plus the unknown floor; other attributes are the inner map's."""
 
-    def __init__(self, inner: WorldMap, params: MappingParams) -> None:
+    def __init__(self, inner: WorldMap, robot: RobotModel, params: MappingParams) -> None:
         self.inner = inner
         self.unknown = UnknownFloor(params)
+        self.self_filter = SelfFilter(robot, params.self_filter_margin_m)
         self._unknown_ms = 0.0
 
     @property
@@ -36,7 +39,7 @@ class UnknownSpaceMap:
         self.inner.integrate(obs)
         t0 = time.perf_counter()
         for frame in obs.frames:
-            self.unknown.integrate(frame)
+            self.unknown.integrate(frame, self.self_filter.body(obs.q_at(frame.t)))
         self._unknown_ms = (time.perf_counter() - t0) * 1e3
 
     def snapshot(self) -> ObjectMapSnapshot:
@@ -51,6 +54,6 @@ class UnknownSpaceMap:
 
     def __getattr__(self, name: str) -> Any:
         """The wrapped map's own attributes (its objects, counters) read through (never dunders: pickling)."""
-        if name.startswith("__") or name in ("inner", "unknown", "_unknown_ms"):
+        if name.startswith("__") or name in ("inner", "unknown", "self_filter", "_unknown_ms"):
             raise AttributeError(name)
         return getattr(self.inner, name)

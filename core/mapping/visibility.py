@@ -50,6 +50,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from core.mapping.floor import floor_threshold
+from core.mapping.flying_pixels import EdgeFilter, neighbourhoods_at
+from core.params import MappingParams
 from core.types import DepthFrame
 
 NOT_EXPECTED, HIT, THROUGH, OCCLUDED, UNSEEN = 0, 1, 2, 3, 4
@@ -96,15 +98,17 @@ class FrameView:
     noise_coeff_m: float
     patch_px: int = 2
     floor_height_m: float = -np.inf
+    edges: EdgeFilter | None = None
 
     @classmethod
-    def of(cls, frame: DepthFrame, margin_m: float, noise_coeff_m: float, range_m: float | None = None,
-           patch_px: int = 2, floor_height_m: float = -np.inf) -> FrameView:
-        """The view of a frame; returns lower than `floor_height_m` (plus noise) are floor, i.e. no return."""
+    def of(cls, frame: DepthFrame, params: MappingParams) -> FrameView:
+        """The view of a frame with the mapping's margins; returns lower than the floor height (plus noise) are
+        floor, i.e. no return, and so are mixed pixels at depth edges (the points' flying-pixel filter)."""
         R = frame.T_world_camera[:3, :3]
         t = frame.T_world_camera[:3, 3]
-        limit = frame.range_m if range_m is None else min(range_m, frame.range_m)
-        return cls(frame.depth, frame.K, R.T, -R.T @ t, limit, margin_m, noise_coeff_m, patch_px, floor_height_m)
+        p = params
+        return cls(frame.depth, frame.K, R.T, -R.T @ t, min(p.range_m, frame.range_m), p.visibility_margin_m,
+                   p.depth_noise_coeff_m, p.through_patch_px, p.floor_height_m, EdgeFilter.of(p))
 
     @property
     def camera_position(self) -> np.ndarray:
@@ -138,7 +142,7 @@ class FrameView:
         inside = (z > 0.0) & (u >= 0) & (u < w) & (v >= 0) & (v < h) & (z + margin < self.range_m)
         idx = np.nonzero(inside)[0]
         vi, ui = v[idx].astype(int), u[idx].astype(int)
-        raw = self.depth[vi, ui].astype(float)
+        raw = self.returns_at(vi, ui)
         d = self.beyond_floor(raw, vi, ui)
         zi, mi = z[idx], margin[idx]
         lab = np.full(len(idx), HIT, dtype=np.int8)
@@ -154,6 +158,14 @@ class FrameView:
             lab[beyond[near > zi[beyond] + mi[beyond]]] = THROUGH
         labels[idx] = lab
         return labels
+
+    def returns_at(self, v: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Depths (m) of pixels (v, u), 0 where nothing returned or the pixel is mixed at a depth edge: a
+        flying pixel hangs between the two sides, where nothing is (the points leave it out, so must this)."""
+        raw = self.depth[v, u].astype(float)
+        if self.edges is None:
+            return raw
+        return np.where(self.edges.mixed(raw, neighbourhoods_at(self.depth, v, u)), 0.0, raw)
 
     def ray_dz(self, v: np.ndarray, u: np.ndarray) -> np.ndarray:
         """World z change per metre of depth along the rays of pixels (v, u)."""

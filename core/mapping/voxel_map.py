@@ -88,8 +88,7 @@ class VoxelMap:
         if len(self.keys) == 0:
             return
         p = self.params
-        view = FrameView.of(frame, p.visibility_margin_m, p.depth_noise_coeff_m, p.range_m, p.through_patch_px,
-                                p.floor_height_m)
+        view = FrameView.of(frame, p)
         through = view.classify(self.centres(self.keys)) == THROUGH
         through &= ~np.isin(self.keys, hit_keys, assume_unique=True)
         self.logodds[through] = np.maximum(self.logodds[through] + p.logodds_miss, p.logodds_min)

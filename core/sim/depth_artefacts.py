@@ -27,21 +27,25 @@ def blank(depth: np.ndarray, mask: np.ndarray) -> np.ndarray:
 def flying_pixels(depth: np.ndarray, fraction: float, jump_m: float, rng: np.random.Generator) -> np.ndarray:
     """Mixed pixels at depth steps: of each horizontally or vertically neighbouring pair whose depths differ
     by more than `jump_m` (both returning), with probability `fraction` one of the two (either, at random)
-    reads near + U(0, 1) · (far − near)."""
+    reads near + U(0, 1) · (far − near).
+
+    The draws are made for every pair of the image, edge or not, so the generator's stream after this step
+    does not depend on the scene: a change far from the view (a floor reaching further) leaves the noise of
+    every other pixel as it was."""
     out = depth.copy()
     if fraction <= 0.0:
         return out
     for axis in (0, 1):
         a = depth[:-1, :] if axis == 0 else depth[:, :-1]
         b = depth[1:, :] if axis == 0 else depth[:, 1:]
-        rows, cols = np.nonzero((np.abs(a - b) > jump_m) & (a > 0.0) & (b > 0.0))
-        pick = rng.random(len(rows)) < fraction
-        rows, cols = rows[pick], cols[pick]
+        pick_u, second_u, mix_u = rng.random((3, *a.shape))
+        rows, cols = np.nonzero((np.abs(a - b) > jump_m) & (a > 0.0) & (b > 0.0) & (pick_u < fraction))
         near, far = np.minimum(a[rows, cols], b[rows, cols]), np.maximum(a[rows, cols], b[rows, cols])
-        second = rng.random(len(rows)) < 0.5  # which pixel of the pair flies
+        mix = mix_u[rows, cols]
+        second = second_u[rows, cols] < 0.5  # which pixel of the pair flies
         rows = rows + (second if axis == 0 else 0)
         cols = cols + (second if axis == 1 else 0)
-        out[rows, cols] = near + rng.random(len(rows)) * (far - near)
+        out[rows, cols] = near + mix * (far - near)
     return out
 
 

@@ -96,7 +96,7 @@ def _add_velocity_actuators(spec: mujoco.MjSpec, robot: RobotModel) -> None:
 
 
 def _add_room(spec: mujoco.MjSpec, params: SimParams) -> None:
-    half = params.room_half_size_m
+    half = params.room_half_size_m + (0.0 if params.walls else params.floor_beyond_room_m)
     spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=(half, half, 0.1),
                             rgba=(0.82, 0.83, 0.85, 1), contype=0, conaffinity=0)
     spec.worldbody.add_light(name="sun", pos=(0, 0, 6), dir=(0, 0, -1), type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL)

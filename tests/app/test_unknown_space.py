@@ -21,8 +21,7 @@ DARK = Box("dark", (3.0, 0.0, 0.4), (0.6, 1.2, 0.8), dark=True)
 def test_a_goal_behind_a_box_that_returns_no_depth_is_reached_round_it_without_touching_it():
     scene = Scene((DARK,), robot_start=(0.0, 0.0, 0.0))
     sequence = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=5.0, y=0.0), timeout_s=40.0)])
-    config = RuntimeConfig(map_kind="object", mapping=replace(MappingParams(), unknown_space="obstacle"))
-    rt = Runtime(config, scene=scene, sequence=sequence)
+    rt = Runtime(RuntimeConfig(map_kind="object"), scene=scene, sequence=sequence)  # unknown space: the default
     lines: list[str] = []
     log = rt.run_lockstep(45.0, on_control=lambda r: lines.append(r.status_line()))
     assert not rt.map.snapshot().objects, "the dark box was mapped: this test needs one the cameras cannot see"
@@ -34,3 +33,14 @@ def test_a_goal_behind_a_box_that_returns_no_depth_is_reached_round_it_without_t
     assert rt.problems.count(ProblemKind.UNKNOWN_SPACE) >= 1
     assert "unknown space ahead" in summary_line(rt.problems.counts())
     assert rt.closed_loop.unknown_slowed_steps > 0
+
+
+@pytest.mark.slow
+def test_with_unknown_space_free_the_base_drives_into_the_box_that_returns_no_depth():
+    """The paper's map, for contrast: the failure the default exists to prevent (so the test above can fail)."""
+    scene = Scene((DARK,), robot_start=(0.0, 0.0, 0.0))
+    sequence = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=5.0, y=0.0), timeout_s=12.0)])
+    config = RuntimeConfig(map_kind="object", mapping=replace(MappingParams(), unknown_space="free"))
+    rt = Runtime(config, scene=scene, sequence=sequence)
+    rt.run_lockstep(12.0)
+    assert rt.world is not None and rt.world.collisions, "the base should have met the box it cannot see"

@@ -6,7 +6,7 @@ from dataclasses import replace
 import numpy as np
 
 from core.mapping.depth_points import unproject
-from core.mapping.flying_pixels import depth_span, without_flying_pixels
+from core.mapping.flying_pixels import EdgeFilter, neighbourhoods, neighbourhoods_at, without_flying_pixels
 from core.params import MappingParams, SensorParams
 from core.scene import Box
 from core.sim.ground_truth import box_signed_distance
@@ -22,14 +22,35 @@ def _off_surfaces(points: np.ndarray) -> np.ndarray:
     return np.minimum(d, np.abs(points[:, 2]))
 
 
-def test_span_of_a_flat_image_is_zero_and_of_a_step_is_the_step():
+SPAN_ONLY = EdgeFilter(0.1, 0.05, 0.005, min_support=0, slope=0.01)
+
+
+def test_a_step_marks_both_rims_and_no_return_takes_no_part_in_the_span():
     depth = np.full((8, 10), 2.0)
-    assert np.all(depth_span(depth, 2) == 0.0)
+    assert not SPAN_ONLY.mixed(depth, neighbourhoods(depth, 1)).any()
     depth[:, 5:] = 3.0
-    span = depth_span(depth, 1)
-    assert np.all(span[:, [4, 5]] == 1.0) and np.all(span[:, [0, 1, 2, 3, 7, 8, 9]] == 0.0)
-    depth[:, 5] = 0.0  # no return takes no part
-    assert np.all(depth_span(depth, 1)[:, 4] == 0.0)
+    mixed = SPAN_ONLY.mixed(depth, neighbourhoods(depth, 1))
+    assert np.all(mixed[:, [4, 5]]) and not mixed[:, [0, 1, 2, 3, 7, 8, 9]].any()
+    depth[:, 5] = 0.0
+    assert not SPAN_ONLY.mixed(depth, neighbourhoods(depth, 1))[:, 4].any()
+
+
+def test_a_pixel_with_no_surface_around_it_is_mixed_even_where_its_far_side_returns_nothing():
+    depth = np.full((9, 9), 2.0)
+    depth[:, 5:] = 0.0  # a background beyond the range
+    depth[4, 5] = 2.25  # a mixed pixel, a quarter metre behind the near side
+    edges = replace(SPAN_ONLY, min_support=3)
+    assert not SPAN_ONLY.mixed(depth, neighbourhoods(depth, 1))[4, 5]  # 0.25 m: inside the span limit
+    mixed = edges.mixed(depth, neighbourhoods(depth, 1))
+    assert mixed[4, 5] and not mixed[:, :4].any()
+    assert not mixed[[0, 8], 4].any()  # a corner-like rim pixel with 3 neighbours on its surface stays
+
+
+def test_scattered_pixels_get_the_neighbourhoods_of_the_strided_frame():
+    depth = np.random.default_rng(0).uniform(0.0, 3.0, (12, 16))
+    grid = neighbourhoods(depth, 2)
+    v, u = np.mgrid[0:12:2, 0:16:2]
+    np.testing.assert_array_equal(neighbourhoods_at(depth, v.ravel(), u.ravel()), grid.reshape(-1, 9))
 
 
 def test_flying_pixels_are_dropped_and_surfaces_kept(robot):
@@ -39,8 +60,7 @@ def test_flying_pixels_are_dropped_and_surfaces_kept(robot):
     exact = View(robot, (BOX, WALL), cameras=("base",)).frame_set()[0]
     frame = view.frame_set()[0]
     raw = unproject(frame.depth, frame.K, frame.T_world_camera, params.pixel_stride)
-    kept_depth = without_flying_pixels(frame.depth, params.pixel_stride, params.flying_pixel_jump_m,
-                                       params.flying_pixel_jump_per_m, params.depth_noise_coeff_m)
+    kept_depth = without_flying_pixels(frame.depth, params.pixel_stride, EdgeFilter.of(params))
     kept = unproject(kept_depth, frame.K, frame.T_world_camera, params.pixel_stride)
     z = np.linalg.norm(raw - frame.T_world_camera[:3, 3], axis=1)
     far_off = _off_surfaces(raw) > 0.1 + 3 * params.depth_noise_coeff_m * z**2  # beyond the noise: flying
