@@ -30,8 +30,9 @@
 - surfaces where they are: the controller's distance query (`LocalEDF.distance`) against the exact
   `scene_signed_distance` at points 0.05–0.5 m off the true boxes' faces along their normals, each point
   nearest to its own face, in the EDF window around the robot, every 5th tick of the aisle drive and of
-  tours round the paper's random scenes (1 m outside the 5 × 5 m area, facing it, both cameras, the whole
-  sensor model's depth): `edf_error_seen_median_abs_m` and `edf_error_seen_p95_abs_m` off faces the
+  tours round the paper's random scenes (1 m outside the 5 × 5 m area, facing it, backed off where the arm
+  would reach into a box, both cameras, the whole sensor model's depth): `edf_error_seen_median_abs_m` and
+  `edf_error_seen_p95_abs_m` off faces the
   cameras saw (a fused depth return within 5 cm of the face point), `edf_error_unseen_*` (signed) off the
   others (backs never seen, where box completion is conservative); `aisle_`/`random_` prefixes per set.
 
@@ -355,6 +356,8 @@ def face_errors(edf: LocalEDF, boxes: tuple[Box, ...], faces: tuple[np.ndarray, 
     q = points + normals * off[:, None]
     inside = np.all((q >= edf.origin) & (q <= edf.upper), axis=1)
     q, off, points = q[inside], off[inside], points[inside]
+    if len(q) == 0:  # no face in the window (the tour's far side of an empty stretch)
+        return np.zeros(0), np.zeros(0)
     truth = scene_signed_distance(q, boxes)
     own = np.abs(truth - off) < 1e-6  # the face is the nearest surface (not a touching neighbour's)
     q, truth, points = q[own], truth[own], points[own]
@@ -365,10 +368,22 @@ def face_errors(edf: LocalEDF, boxes: tuple[Box, ...], faces: tuple[np.ndarray, 
     return err[seen], err[~seen]
 
 
+def clear_of_boxes(robot: RobotModel, boxes: tuple[Box, ...], q: np.ndarray, step_m: float = 0.05) -> np.ndarray:
+    """q with the base backed away from the scene's centre (the origin) until no collision sphere overlaps a
+    box: the tour is teleported, and a robot cannot stand with its arm in a box (a camera inside one renders
+    through its faces, which a real one never sees)."""
+    q = q.copy()
+    out = q[:2] / max(float(np.linalg.norm(q[:2])), 1e-9)
+    while np.min(scene_signed_distance(robot.sphere_centres(q), boxes) - robot.sphere_radii) < 0.0:
+        q[:2] += step_m * out
+    return q
+
+
 def random_scene_tour(robot: RobotModel, params: MappingParams, seed: int, ticks: int,
                       sensor: SensorParams) -> tuple[list[np.ndarray], list[np.ndarray], list[float]]:
     """The paper's random scene `seed`, the robot teleported round the 5 × 5 m area (1 m outside it, facing
-    its centre, swaying ±0.4 rad) with both cameras; the seen/unseen face errors every 5th tick, EDF ms."""
+    its centre, swaying ±0.4 rad; backed off where its arm would reach into a box) with both cameras; the
+    seen/unseen face errors every 5th tick, EDF ms."""
     scene = random_scene(seed)
     world = SimWorld(robot, SimParams(sensor=sensor), scene)
     cams = [DepthCamera(world, name, CameraParams(), seed=seed * 2 + i, sensor=sensor)
@@ -382,6 +397,7 @@ def random_scene_tour(robot: RobotModel, params: MappingParams, seed: int, ticks
         x, y = 3.5 * math.cos(phase + math.pi), 3.5 * math.sin(phase + math.pi)
         q = READY_Q.copy()
         q[:3] = x, y, math.atan2(-y, -x) + 0.4 * math.sin(2 * math.pi * k / 20)
+        q = clear_of_boxes(robot, scene.boxes, q)
         world.set_robot(q)
         world.data.time += 0.1
         mapper.integrate(Observation(world.state(), tuple(c.render() for c in cams), None))

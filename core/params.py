@@ -388,6 +388,10 @@ class MappingParams:
     """EDF grid spacing (the authors used 0.2 m)."""
     theta_cutoff_m: float = 1.8
     """Distances are truncated here; outside the window the field is this constant."""
+    surface_shell_ratio: float = 40.0
+    """An object mapped by its surface (not box-like) enters the EDF without the points whose EDF cell weighs
+    (depth-noise weights) less than 1/this of a neighbour cell: the noise shell in front of a face seen from
+    afar (`core/mapping/noise_shell.py`); 0 keeps every point."""
     theta_zero_m: float = 0.05
     """Submap voxels with |M_i| ≤ theta_zero are the object's surface (9a). Here by construction: a submap
     keeps only the voxels surface points fell in, whose centroids are at |M_i| = 0 (`submap.py`); this is

@@ -28,6 +28,7 @@ from typing import cast
 import numpy as np
 from scipy import ndimage
 
+from core.mapping.noise_shell import outweighed
 from core.types import LocalEDF
 
 
@@ -160,6 +161,14 @@ def local_edf(grid: EDFGrid, occupied: np.ndarray, cutoff: float) -> LocalEDF:
 
 # --- exact distances near seen surfaces (docs/decisions.md, "Mapped surfaces where they are") ----------
 
+NEIGHBOUR_REACH = 3
+"""A free node of the surface-column field also reads the points that the nearest occupied nodes of the nodes up
+to this many above and below it stand for. Columns make the occupied nodes tall, and a column's top node stands
+for a point up to half a voxel below it, so the nearest node in node distance is often one of a column that
+stands for a point lower than its neighbour's (issue 26: by the aisle island's corner a column top 0.2 m below
+the corner: the field read 0.92 m where the nearest surface point was 0.85 m away; ±1 and ±2 nodes still left
+0.06 m; ±3 along x and y alone 0.062, along z alone 0.04)."""
+
 
 def window_axes(grid: EDFGrid) -> list[np.ndarray]:
     """Coordinates of the window's nodes along x, y and z."""
@@ -190,7 +199,8 @@ def box_field(axes: list[np.ndarray], boxes: Iterable[tuple[np.ndarray, np.ndarr
     return np.maximum(out, -cutoff)
 
 
-def column_field(grid: EDFGrid, points: np.ndarray, cutoff: float, weights: np.ndarray | None = None) -> np.ndarray:
+def column_field(grid: EDFGrid, points: np.ndarray, cutoff: float, weights: np.ndarray | None = None,
+                 shell_ratio: float = 0.0) -> np.ndarray:
     """Signed distance (m) on the window's nodes to the columns under surface points (N×3): the solid that
     `mark_columns` marks, measured to the surface itself rather than node to node.
 
@@ -201,8 +211,16 @@ def column_field(grid: EDFGrid, points: np.ndarray, cutoff: float, weights: np.n
     along the direction to that free space (positive when the node lies in front of the surface it stands
     for); deeper ones the transform's depth. On a wall seen from the side the point lies on the wall right
     in front of the node, so the values are the wall's distance to a few millimetres, where node-to-node
-    distances read up to a voxel nearer. Truncated at ±cutoff.
+    distances read up to a voxel nearer. The nearest node in node distance need not stand for the nearest
+    point (a point lies up to half a voxel from its node in each axis), so a free node also reads the points
+    of the nearest nodes of the nodes up to `NEIGHBOUR_REACH` above and below it, and keeps the nearest.
+    With `weights` and a `shell_ratio`, points whose EDF cell is outweighed that many times by a neighbour
+    cell (the noise shell of a face seen from afar, `noise_shell.py`) are left out first. Truncated at ±cutoff.
     """
+    if weights is not None and shell_ratio > 0.0:
+        weights = np.asarray(weights, float)
+        keep = ~outweighed(grid.origin, grid.voxel, grid.shape, points, weights, shell_ratio)
+        points, weights = points[keep], weights[keep]
     occupied = grid.empty()
     mark_columns(grid, occupied, points)
     if not occupied.any():
@@ -214,6 +232,7 @@ def column_field(grid: EDFGrid, points: np.ndarray, cutoff: float, weights: np.n
     nodes = window_axes(grid)
     x, y, z = nodes[0][:, None, None], nodes[1][None, :, None], nodes[2][None, None, :]
     outside = np.sqrt((x - sx[i, j, k]) ** 2 + (y - sy[i, j, k]) ** 2 + (z - sz[i, j, k]) ** 2)
+    _nearer_through_neighbours(grid, nearest, (sx, sy, sz), (x, y, z), outside)
     inside = -(depth_inside(occupied)[grid.window] - 0.5) * grid.voxel
     w = grid.window
     grown = tuple(slice(max(a.start - 1, 0), a.stop + 1) for a in w)
@@ -227,6 +246,28 @@ def column_field(grid: EDFGrid, points: np.ndarray, cutoff: float, weights: np.n
     inside = np.where(rim, offset, inside)
     values = np.where(occupied[w], inside, outside)
     return np.clip(values, -cutoff, cutoff)
+
+
+def _nearer_through_neighbours(grid: EDFGrid, nearest: np.ndarray, surface: tuple[np.ndarray, ...],
+                               nodes: tuple[np.ndarray, ...], outside: np.ndarray) -> None:
+    """Lower each window node's `outside` (in place) to its distance to the points that the nearest occupied
+    nodes of the nodes up to `NEIGHBOUR_REACH` above and below it stand for, where those differ from its own."""
+    r = NEIGHBOUR_REACH
+    flat = np.ravel_multi_index(tuple(nearest), grid.shape)
+    flat = np.pad(flat, ((0, 0), (0, 0), (r, r)), mode="edge")  # shifts past the top or bottom repeat the last node
+    window = (grid.window[0], grid.window[1], slice(grid.window[2].start + r, grid.window[2].stop + r))
+    own = flat[window]
+    points = [c.reshape(-1) for c in surface]
+    full = np.broadcast_arrays(*nodes, outside)[:3]
+    for step in (*range(-r, 0), *range(1, r + 1)):
+        shifted = (window[0], window[1], slice(window[2].start + step, window[2].stop + step))
+        other = flat[shifted]
+        changed = other != own
+        if not changed.any():
+            continue
+        idx = other[changed]
+        d = np.sqrt(sum((full[c][changed] - points[c][idx]) ** 2 for c in range(3)))
+        outside[changed] = np.minimum(outside[changed], d)
 
 
 def _free_side(occupied: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

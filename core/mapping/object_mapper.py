@@ -151,7 +151,7 @@ class ObjectMapper:
         if others:
             points = np.concatenate([o.solid_world_points() for o in others])
             weights = np.concatenate([o.solid_weights() for o in others])
-            values = np.minimum(values, column_field(grid, points, p.theta_cutoff_m, weights))
+            values = np.minimum(values, column_field(grid, points, p.theta_cutoff_m, weights, p.surface_shell_ratio))
         return LocalEDF(origin=grid.window_origin, voxel=grid.voxel, values=np.ascontiguousarray(values),
                         cutoff=p.theta_cutoff_m)
 

@@ -27,7 +27,7 @@ from core.types import MappedObject, ObjectStatus, Posterior
 REFIT_CHANGE = 0.03
 """Refit the box's extent when the submap's voxel count changed by more than this fraction."""
 REFIT_YAW_GROWTH = 1.0
-"""Refit its yaw (a convex hull) only when the submap grew by more than this fraction."""
+"""Refit its yaw (`box_yaw.side_yaw`) only when the submap grew by more than this fraction."""
 
 
 class _Change(Flag):
