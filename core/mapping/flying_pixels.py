@@ -10,16 +10,17 @@ real pipelines, a pixel is mixed, and dropped, when either test fails:
   jump_m + jump_per_m · z + 6 · c · z² (the last term: the spread that depth noise of std c · z² gives
   nine pixels of one surface; the middle one: a surface seen at a grazing angle up to ~80°). Both rims of
   a real edge go too: a pixel's width (1.4 cm at 3 m) off each silhouette.
-- **support**, for a pixel with a silent neighbour and a nearer one (beyond the same tolerance): fewer
-  than `min_support` of its 8 neighbours return a depth within 3√2 · c · z² + slope · z of its own. The span test is blind where the far side of the
-  edge returns nothing (a background beyond the range): a mixed pixel there reads up to the range behind
-  the near side, and a span of a few tens of centimetres passes the noise term at 2–3 m. Its neighbours
-  are the near side (too near), silent pixels and other mixed pixels at their own random depths, so it has
-  no surface around it; a pixel of a real surface has 3 (a box's corner) to 8 such neighbours. Where every
-  neighbour returns, the span test has seen the edge, and this one is not asked: a face seen at a grazing
-  angle (a box's side a few pixels wide) would lose the points that register the box when it is pushed. Nor
-  where no neighbour is nearer: the rim of the near side itself (a box's corner against the far floor) is a
-  surface, and dropping it changed which vacated places E1's object map cleared (one scene: 1 → 4 phantoms).
+- **support**, for a pixel with a silent neighbour and a nearer one (beyond the same tolerance): fewer than
+  `min_support` of its 8 neighbours return a depth within 3√2 · c · z² + slope · z of its own. The span test
+  is blind where the far side of the edge returns nothing (a background beyond the range): a mixed pixel there
+  reads up to the range behind the near side, and a span of a few tens of centimetres passes the noise term at
+  2–3 m. Its neighbours are the near side (too near), silent pixels and other mixed pixels at their own random
+  depths, so it has no surface around it; a pixel of a real surface has 3 (a box's corner) to 8 such
+  neighbours. Where every neighbour returns, the span test has seen the edge, and this one is not asked: a
+  face seen at a grazing angle (a box's side a few pixels wide) would lose the points that register the box
+  when it is pushed. Nor where no neighbour is nearer: the rim of the near side itself (a box's corner against
+  the far floor) is a surface, and dropping it changed which vacated places E1's object map cleared (one
+  scene: 1 → 4 phantoms).
 
 Pixels without a return take no part. The same tests run on a strided frame (the points) and on scattered
 pixels (the visibility checks), so a pixel left out of the points is no evidence there either.
