@@ -39,7 +39,8 @@ class UnknownSpaceMap:
         self.inner.integrate(obs)
         t0 = time.perf_counter()
         for frame in obs.frames:
-            self.unknown.integrate(frame, self.self_filter.body(obs.q_at(frame.t)))
+            if frame.camera in self.unknown.params.unknown_cameras:  # the body's kinematics only where it is used
+                self.unknown.integrate(frame, self.self_filter.body(obs.q_at(frame.t)))
         self._unknown_ms = (time.perf_counter() - t0) * 1e3
 
     def snapshot(self) -> ObjectMapSnapshot:
