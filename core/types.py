@@ -59,6 +59,17 @@ class Odometry:
     twist: np.ndarray
 
 
+class PoseSource(StrEnum):
+    """What the base pose a backend reports is (`Observation.pose_source`)."""
+
+    ODOMETRY = "odometry"
+    """Dead reckoning (wheel odometry) in its own frame, drifting: the runtime's localizer corrects it when
+    localization is on (`LocalizationParams.enabled`)."""
+    LOCALIZED = "localized"
+    """Already localized by the robot itself (its own SLAM), in a world frame: used as it is, the runtime's
+    localizer stays off for it."""
+
+
 @dataclass(frozen=True)
 class Observation:
     """What a robot backend reports each tick: joint state, the depth frames captured since last time."""
@@ -67,6 +78,8 @@ class Observation:
     frames: tuple[DepthFrame, ...]
     odometry: Odometry | None
     """None where no odometry is reported (frames handed to the map on their own)."""
+    pose_source: PoseSource = PoseSource.ODOMETRY
+    """What the state's base pose (and the frames' poses) are: odometry, or the robot's own localization."""
 
     def q_at(self, t: float) -> np.ndarray:
         """The configuration at time t (a frame's exposure), from the state and its velocity: a frame is up to a

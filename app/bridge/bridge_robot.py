@@ -1,11 +1,12 @@
 """`BridgeRobot`: the `RobotBackend` of a real robot whose driver is connected to the bridge.
 
 The runtime drives it exactly as it drives `SimRobot`: `observe()` returns the driver's latest
-accepted state, the depth frames that arrived since the previous call and the odometry (the base
-part of the state when the driver sends none); `command(qdot, t)` sends a velocity command. Its
-`abilities` are a real robot's: it runs on its own clock (no lockstep), there is no simulated world (no
-scene edits, no ground truth), and its cameras' latency is for the operator to calibrate
-(`MappingParams.camera_latency_s`).
+accepted state, the depth frames that arrived since the previous call, the odometry (the base
+part of the state when the driver sends none) and the state's `pose_source` (odometry, which the
+runtime's localizer corrects when localization is on, or a pose the robot localized itself, used as
+it is); `command(qdot, t)` sends a velocity command. Its `abilities` are a real robot's: it runs on
+its own clock (no lockstep), there is no simulated world (no scene edits, no ground truth), and its
+cameras' latency is for the operator to calibrate (`MappingParams.camera_latency_s`).
 
 A command goes out as the runtime computed it only while everything is sound; otherwise zero velocity
 goes out, with the reason: the command itself is not 9 finite numbers (`invalid_command`), the state is
@@ -54,12 +55,13 @@ class BridgeRobot:
         return True
 
     def observe(self) -> Observation:
-        """Latest state (all zeros at t = 0 before the driver's first), new frames, odometry."""
-        state, frames, odometry = self.link.take()
+        """Latest state (all zeros at t = 0 before the driver's first), new frames, odometry, and what the base
+        pose is (the driver's `pose_source`: odometry, or a pose the robot localized itself)."""
+        state, frames, odometry, pose_source = self.link.take()
         state = state or self._placeholder
         if odometry is None:
             odometry = Odometry(state.t, state.q[:3].copy(), state.v[:3].copy())
-        return Observation(state=state, frames=frames, odometry=odometry)
+        return Observation(state=state, frames=frames, odometry=odometry, pose_source=pose_source)
 
     def command(self, qdot: np.ndarray, t: float) -> None:
         """Send qdot[9] stamped t, or zero velocity when the command or the link is not sound."""

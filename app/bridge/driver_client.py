@@ -2,7 +2,7 @@
 
     client = DriverClient("ws://127.0.0.1:8090/robot", name="my-robot")   # token: HTMPC_BRIDGE_TOKEN or the file
     client.connect()                           # → the bridge's Welcome (401 → InvalidStatus)
-    client.send_state(t, q, v)                 # 50–100 Hz
+    client.send_state(t, q, v)                 # 50–100 Hz (pose_source="localized": the robot's own SLAM)
     client.send_frame(depth_frame)             # 5–10 Hz, binary (see depth_framing)
     message = client.receive(timeout_s=0.05)   # Command (acknowledged for you), ErrorMessage or None
 
@@ -29,6 +29,7 @@ from app.bridge.protocol import (
     ErrorMessage,
     Hello,
     OdometryIn,
+    PoseSourceIn,
     StateMessage,
     Welcome,
 )
@@ -66,10 +67,13 @@ class DriverClient:
             raise ConnectionError("not connected: call connect() first")
         return self._ws
 
-    def send_state(self, t: float, q: np.ndarray, v: np.ndarray, odometry: Odometry | None = None) -> None:
+    def send_state(self, t: float, q: np.ndarray, v: np.ndarray, odometry: Odometry | None = None,
+                   pose_source: PoseSourceIn = "odometry") -> None:
+        """`pose_source`: "odometry" (the runtime localizes it) or "localized" (the robot's own localization)."""
         odo = None if odometry is None else OdometryIn(pose=list(map(float, odometry.pose)),
                                                        twist=list(map(float, odometry.twist)))
-        msg = StateMessage(t=t, q=[float(x) for x in q], v=[float(x) for x in v], odometry=odo)
+        msg = StateMessage(t=t, q=[float(x) for x in q], v=[float(x) for x in v], odometry=odo,
+                           pose_source=pose_source)
         self.ws.send(msg.model_dump_json())
 
     def send_frame(self, frame: DepthFrame, encoding: DepthEncoding = "float32_m") -> None:

@@ -66,14 +66,21 @@ class OdometryIn(Message):
     twist: Vec3
 
 
+PoseSourceIn = Literal["odometry", "localized"]
+"""What a driver's base pose is (`core.types.PoseSource`): its wheel odometry (the runtime localizes it when
+localization is on) or a pose the robot localized itself (its own SLAM; used as it is)."""
+
+
 class StateMessage(Message):
-    """Joint state at robot time t (s, a steady clock): q[9] = [x, y, yaw, 6 arm joints], v[9] their rates."""
+    """Joint state at robot time t (s, a steady clock): q[9] = [x, y, yaw, 6 arm joints], v[9] their rates;
+    `pose_source` says what the base pose (and the depth frames' poses) are (default: odometry)."""
 
     type: Literal["state"] = "state"
     t: Bounded
     q: JointVector
     v: JointVector
     odometry: OdometryIn | None = None
+    pose_source: PoseSourceIn = "odometry"
 
 
 class Ack(Message):
@@ -198,8 +205,14 @@ class LinkCounters(BaseModel):
     stale_events: int
 
 
+LocalizedBy = Literal["off", "localizer", "driver"]
+"""Who localizes the base pose the runtime uses: nobody (odometry as it is), the runtime's localizer (it corrects
+the driver's odometry), the driver itself (its `pose_source` is `localized`: used as it is)."""
+
+
 class Health(BaseModel):
-    """Is the bridge alive, is a driver connected and fresh, what was rejected."""
+    """Is the bridge alive, is a driver connected and fresh, what was rejected; what its pose is and who localizes
+    it."""
 
     status: Literal["ok"] = "ok"
     protocol: int = PROTOCOL_VERSION
@@ -213,6 +226,28 @@ class Health(BaseModel):
     counters: LinkCounters
     command_rtt_median_ms: float | None
     command_rtt_p99_ms: float | None
+    pose_source: PoseSourceIn | None = None
+    """The `pose_source` of the driver's latest state (None before any)."""
+    localized_by: LocalizedBy | None = None
+    """Who localizes the pose the runtime uses (None without a runtime attached)."""
+
+
+class LocalizationOut(BaseModel):
+    """Who localizes the base pose the runtime uses, and the health of the runtime's estimate when it is the
+    localizer's (`core/localization/health.py`; every number None otherwise)."""
+
+    by: LocalizedBy
+    accepted: int | None = None
+    """Registrations accepted (corrections) since the start."""
+    rejected: int | None = None
+    degenerate: int | None = None
+    no_reference: int | None = None
+    sigma_xy_m: float | None = None
+    """The largest position std of the estimate (m)."""
+    since_accepted_s: float | None = None
+    """Robot time since the last accepted correction (since the start before the first)."""
+    untrusted: str | None = None
+    """Why the localizer's pose is untrusted now (None: trusted, or not the localizer's)."""
 
 
 class RobotStateOut(BaseModel):
@@ -225,6 +260,10 @@ class RobotStateOut(BaseModel):
     status: str
     fault: str | None = None
     """Why the run is in the `fault` run state (a loop failed or the state was not finite); null otherwise."""
+    pose_source: PoseSourceIn = "odometry"
+    """What the robot reports as its base pose (the driver's `pose_source`)."""
+    localization: LocalizationOut | None = None
+    """Who localizes the pose in `q`, and the localizer's health."""
 
 
 class PlanOut(BaseModel):

@@ -24,7 +24,7 @@ import numpy as np
 
 from app.bridge.protocol import STALE_AFTER_S, Ack, Command, CommandReason, RejectionCode, StateMessage
 from core.errors import StudioError
-from core.types import NQ, DepthFrame, Odometry, RobotState
+from core.types import NQ, DepthFrame, Odometry, PoseSource, RobotState
 
 log = logging.getLogger(__name__)
 
@@ -76,6 +76,8 @@ class RobotLink:
         self.driver: str | None = None
         self._state: RobotState | None = None
         self._odometry: Odometry | None = None
+        self.pose_source: PoseSource | None = None
+        """The `pose_source` of the latest accepted state (None before any)."""
         self._state_at = -math.inf
         self._connection_t = -math.inf
         self.clock_offset = 0.0
@@ -137,6 +139,7 @@ class RobotLink:
             self._state = RobotState(t, np.array(msg.q, dtype=float), np.array(msg.v, dtype=float))
             odo = msg.odometry
             self._odometry = None if odo is None else Odometry(t, np.array(odo.pose), np.array(odo.twist))
+            self.pose_source = PoseSource(msg.pose_source)
             self._state_at = time.monotonic()
             self.counts["states"] += 1
 
@@ -226,12 +229,13 @@ class RobotLink:
         state = self._state
         return state.t if state is not None else 0.0
 
-    def take(self) -> tuple[RobotState | None, tuple[DepthFrame, ...], Odometry | None]:
-        """Latest state (None before any), the frames queued since the previous call, latest odometry."""
+    def take(self) -> tuple[RobotState | None, tuple[DepthFrame, ...], Odometry | None, PoseSource]:
+        """Latest state (None before any), the frames queued since the previous call, latest odometry, and what
+        the state's base pose is (odometry before any state)."""
         with self._lock:
             frames = tuple(self._frames)
             self._frames.clear()
-            return self._state, frames, self._odometry
+            return self._state, frames, self._odometry, self.pose_source or PoseSource.ODOMETRY
 
     def rtt_ms(self) -> list[float]:
         """Recent command round trips (ms)."""

@@ -1,10 +1,14 @@
 """Reference driver: the MuJoCo robot in its own process, talking to the bridge over real sockets.
 
     python -m app.bridge.sim_driver [--url ws://127.0.0.1:8090/robot] [--token-file FILE] [--scene FILE]
+                                    [--pose-source odometry|localized]
 
 It behaves as a robot's driver should: the simulation (`SimWorld` + `SimRobot`) advances in real time;
 state goes out at `--state-hz` (100), depth frames as the cameras render them (10 Hz each); every
-command is acknowledged on receipt and applied at the next control cycle. Safety:
+command is acknowledged on receipt and applied at the next control cycle. Its base pose is its wheel odometry,
+drifting as the sensor model's does (`--pose-source odometry`, the default: the studio localizes it when
+localization is on), or, standing in for a robot with its own SLAM, the simulator's true pose, sent as
+`"pose_source": "localized"` (`--pose-source localized`: the studio uses it as it is). Safety:
 - no command for `--command-timeout` (0.25 s) → zero velocity until commands come back;
 - the link closes or fails (the bridge went away) → zero velocity, exit with status 3.
 Exit status 0 after `--duration` or SIGINT/SIGTERM; 2 when it cannot connect within `--connect-timeout`.
@@ -20,7 +24,7 @@ import signal
 import sys
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +33,7 @@ from websockets.exceptions import ConnectionClosed, InvalidStatus
 import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported)
 from app.bridge.auth import TOKEN_ENV, read_token
 from app.bridge.driver_client import DriverClient
-from app.bridge.protocol import Command, DepthEncoding
+from app.bridge.protocol import Command, DepthEncoding, PoseSourceIn
 from app.thread_priority import set_thread_niceness
 from core.errors import StudioError
 from core.params import SimParams
@@ -65,8 +69,11 @@ class SimDriver:
     """Runs a `SimRobot` in real time and bridges it to the link of a connected `DriverClient`."""
 
     def __init__(self, client: DriverClient, robot: SimRobot, state_hz: float = 100.0,
-                 command_timeout_s: float = 0.25, encoding: DepthEncoding = "float32_m") -> None:
+                 command_timeout_s: float = 0.25, encoding: DepthEncoding = "float32_m",
+                 pose_source: PoseSourceIn = "odometry") -> None:
         self.client, self.robot = client, robot
+        self.pose_source: PoseSourceIn = pose_source
+        """What the state's base pose is, as sent (`pose_source` of every state)."""
         self.period_s = 1.0 / state_hz
         self.command_timeout_s = command_timeout_s
         self.encoding: DepthEncoding = encoding
@@ -107,7 +114,7 @@ class SimDriver:
 
     def _publish(self) -> None:
         obs = self.robot.observe()
-        self.client.send_state(obs.state.t, obs.state.q, obs.state.v, obs.odometry)
+        self.client.send_state(obs.state.t, obs.state.q, obs.state.v, obs.odometry, self.pose_source)
         for frame in obs.frames:
             self.client.send_frame(frame, self.encoding)
 
@@ -180,6 +187,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "a command (s)")
     parser.add_argument("--cameras", default="hand,base", help="depth cameras to stream, comma-separated ('' none)")
     parser.add_argument("--encoding", choices=("float32_m", "uint16_mm"), default="float32_m")
+    parser.add_argument("--pose-source", choices=("odometry", "localized"), default="odometry",
+                        help="the base pose sent: the wheel odometry, drifting (the studio localizes it when "
+                             "localization is on), or, as a robot with its own SLAM would, a localized pose (here the "
+                             "simulator's true pose, used as it is)")
     parser.add_argument("--duration", type=float, default=None, help="exit after this many seconds")
     parser.add_argument("--connect-timeout", type=float, default=30.0)
     parser.add_argument("--seed", type=int, default=0)
@@ -206,12 +217,15 @@ def main(argv: list[str] | None = None) -> int:
         world = SimWorld(RobotModel(), SimParams(), load_scene(args.scene))
     except (OSError, ValueError) as err:  # a bad file, or a box inside the robot (SceneEditError)
         parser.error(str(err))
-    robot = SimRobot(world, seed=args.seed, cameras=tuple(c for c in args.cameras.split(",") if c))
+    sensor = world.params.sensor
+    if args.pose_source == "localized":  # its own SLAM, standing in: the true pose (the depth stays as noisy)
+        sensor = replace(sensor, odometry_drift_m=0.0, odometry_drift_rad=0.0)
+    robot = SimRobot(world, seed=args.seed, cameras=tuple(c for c in args.cameras.split(",") if c), sensor=sensor)
     client = DriverClient(args.url, token, name="sim_driver", clock=lambda: world.time)
     if not _connect(client, args.connect_timeout):
         return EXIT_NO_CONNECTION
     print(f"sim driver: connected to {args.url}", flush=True)
-    driver = SimDriver(client, robot, args.state_hz, args.command_timeout, args.encoding)
+    driver = SimDriver(client, robot, args.state_hz, args.command_timeout, args.encoding, args.pose_source)
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: driver.stop())
     try:

@@ -12,6 +12,8 @@ from app.bridge.protocol import (
     BoxOut,
     Health,
     LinkCounters,
+    LocalizationOut,
+    LocalizedBy,
     PlanOut,
     ProgressOut,
     RobotStateOut,
@@ -22,7 +24,7 @@ from app.bridge.protocol import (
 from app.bridge.robot_link import RobotLink
 from app.runtime.snapshot import Snapshot
 from core.scene import Scene
-from core.types import Plan
+from core.types import Plan, PoseSource
 from tasks.sequencer import SubtaskProgress
 
 
@@ -32,10 +34,25 @@ def json_array(a: np.ndarray) -> list:
     return [json_array(row) for row in a] if a.ndim > 1 else [finite_or_none(float(x)) for x in a]
 
 
+def localized_by(localizing: bool, pose_source: PoseSource) -> LocalizedBy:
+    """Who localizes the pose the runtime uses: its localizer, the driver (a pose it localized itself), nobody."""
+    return "localizer" if localizing else "driver" if pose_source == PoseSource.LOCALIZED else "off"
+
+
+def localization_out(snap: Snapshot) -> LocalizationOut:
+    h = snap.localization
+    if h is None:
+        return LocalizationOut(by=localized_by(False, snap.pose_source))
+    return LocalizationOut(by="localizer", accepted=h.accepted, rejected=h.rejected, degenerate=h.degenerate,
+                           no_reference=h.no_reference, sigma_xy_m=finite_or_none(h.sigma_xy_m),
+                           since_accepted_s=finite_or_none(h.since_accepted_s), untrusted=h.untrusted)
+
+
 def state_out(snap: Snapshot) -> RobotStateOut:
     s = snap.state
     return RobotStateOut(t=s.t, q=[float(x) for x in s.q], v=[float(x) for x in s.v],
-                         run_state=snap.run_state.value, status=snap.status, fault=snap.fault)
+                         run_state=snap.run_state.value, status=snap.status, fault=snap.fault,
+                         pose_source=snap.pose_source.value, localization=localization_out(snap))
 
 
 def plan_out(plan: Plan) -> PlanOut:
@@ -80,4 +97,7 @@ def health_out(link: RobotLink, attachment: RuntimeAttachment | None) -> Health:
         runtime_attached=attachment is not None,
         run_state=None if attachment is None else attachment.runtime.run_state.value, counters=counters,
         command_rtt_median_ms=finite_or_none(float(np.median(rtt))) if rtt.size else None,
-        command_rtt_p99_ms=finite_or_none(float(np.percentile(rtt, 99))) if rtt.size else None)
+        command_rtt_p99_ms=finite_or_none(float(np.percentile(rtt, 99))) if rtt.size else None,
+        pose_source=None if link.pose_source is None else link.pose_source.value,
+        localized_by=None if attachment is None else localized_by(attachment.runtime.closed_loop.localizing,
+                                                                   attachment.runtime.closed_loop.pose_source))

@@ -57,6 +57,7 @@ from app.target_check import recheck_anchored
 from core.errors import StudioError
 from core.htmpc.safety import brake_along, braking_plan
 from core.localization import LocalizationHealth, Localizer, se2
+from core.localization.localizer import Correction
 from core.mapping.frame_exposure import camera_latency, frames_at_exposure
 from core.mapping.reference_surface import occupied_surface, trusted_surface
 from core.mapping.world_map import WorldMap
@@ -73,6 +74,7 @@ from core.types import (
     Plan,
     PlanReason,
     PlanStatus,
+    PoseSource,
     References,
     ReferenceSurface,
     RobotBackend,
@@ -85,6 +87,7 @@ from tasks.sequencer import Outcome, Sequencer, SubtaskProgress, plural
 
 if TYPE_CHECKING:
     from app.runtime.config import RuntimeConfig
+    from app.runtime.localization_worker import LocalizationWorker
     from core.htmpc import HTMPC
 
 log = logging.getLogger(__name__)
@@ -144,6 +147,8 @@ class LoopReading:
     """The simulator's true base pose [x, y, yaw] when the state was observed, None outside simulation."""
     localization: LocalizationHealth | None = None
     """The pose estimate's health now (`core/localization/health.py`), None without localization."""
+    pose_source: PoseSource = PoseSource.ODOMETRY
+    """What the backend's base pose is (its latest observation): odometry or its own localization."""
 
 
 def untrusted_notice(health: LocalizationHealth | None, delta_safe_m: float) -> str | None:
@@ -223,6 +228,16 @@ class ClosedLoop:
         self._unknown_slowed = False
         """Control steps, and those slowed by unknown space ahead (`app/runtime/unknown_ahead.py`)."""
         self.localizer = self._localizer()
+        self.pose_source = PoseSource.ODOMETRY
+        """What the backend's base pose is (`Observation.pose_source` of its latest observation): odometry, which
+        the localizer corrects (when on), or the robot's own localization, used as it is (the localizer off)."""
+        self._clock_started = steps_in_lockstep(backend)
+        """Whether the localizer's start is the robot's clock: a simulation's clock starts with the loop; a real
+        robot's (a driver's steady clock) is taken when it first moves, not the placeholder state's 0 of a loop
+        that began before the driver's first state."""
+        self.localization_worker: LocalizationWorker | None = None
+        """Live: the thread the registrations run on (`app/runtime/localization_worker.py`); None: they run in
+        the mapping stage itself (lockstep, deterministic)."""
         self._untrusted = False
         """Whether the last control step found the pose untrusted (a new episode is a problem)."""
         self.untrusted_steps = 0
@@ -286,16 +301,23 @@ class ClosedLoop:
                 min_distance_m=self.min_distance_m, config=self.config,
                 command=self.last_qdot.copy() if self.commanded else None, sequence=self.sequencer.sequence,
                 objects=self.objects_view,
-                base_estimate=self.state.q[:3].copy() if self.localizer is not None else None,
+                base_estimate=self.state.q[:3].copy() if self.localizing else None,
                 base_true=None if self.base_true is None else self.base_true.copy(),
-                localization=self.health(self.state.t))
+                localization=self.health(self.state.t), pose_source=self.pose_source)
+
+    @property
+    def localizing(self) -> bool:
+        """Whether the localizer is in charge of the base pose: localization on and the backend reports odometry
+        (a robot that localizes itself, `PoseSource.LOCALIZED`, is used as it is)."""
+        return self.localizer is not None and self.pose_source == PoseSource.ODOMETRY
 
     def health(self, t: float) -> LocalizationHealth | None:
         """The pose estimate's health at robot time t against the configured delta_safe (None without
-        localization)."""
-        if self.localizer is None:
+        localization, and while the robot reports a pose it localized itself: the localizer is off then)."""
+        localizer = self.localizer
+        if localizer is None or not self.localizing:
             return None
-        return self.localizer.health(t, self.config.htmpc.delta_safe_m)
+        return localizer.health(t, self.config.htmpc.delta_safe_m)
 
     @property
     def moving(self) -> bool:
@@ -549,7 +571,8 @@ class ClosedLoop:
             return self.state
         true_base = self._true_base()
         frames = obs.frames
-        if self.localizer is not None:
+        self._follow_pose_source(obs.pose_source, state.t)
+        if self.localizing:
             state, frames = self._reposed(state, frames)
         if frames and self.fault_reason is None:
             with self.frames_ready:
@@ -560,6 +583,29 @@ class ClosedLoop:
             self.base_true = true_base
             self.history.append(state)
         return state
+
+    def _follow_pose_source(self, source: PoseSource, t: float) -> None:
+        """Take the backend's pose source of this observation. A robot that switches to its own localization is
+        used as it is from now on; one that switches back to odometry gets a new localizer (its odometry frame is
+        not the world its localization reported in). The localizer's clock starts when the robot's does
+        (`_clock_started`)."""
+        if self.localizer is not None and not self._clock_started and t != self.state.t:
+            self._clock_started = True
+            self.localizer.start_t = t
+        if source == self.pose_source:
+            return
+        with self.lock:
+            self.pose_source = source
+            self._untrusted = False  # an episode of the localizer's ends with its charge
+        if self.localizer is None:
+            return
+        if source == PoseSource.LOCALIZED:
+            message = "the robot reports a pose it localized itself: used as it is, the localizer is off for it"
+        else:
+            self.localizer = Localizer(self.config.localization, t)
+            message = "the robot reports odometry again: the localizer corrects it, starting afresh"
+        self.log.event(t, "pose_source", source.value)
+        self.notify(message)
 
     def _reposed(self, state: RobotState, frames: tuple[DepthFrame, ...]
                  ) -> tuple[RobotState, tuple[DepthFrame, ...]]:
@@ -578,30 +624,53 @@ class ClosedLoop:
 
     def _to_odometry(self, qdot: np.ndarray) -> np.ndarray:
         """A world-frame command in the backend's odometry frame."""
-        if self.localizer is None:
+        localizer = self.localizer
+        if localizer is None or not self.localizing:
             return qdot
         out = qdot.copy()
-        out[:2] = se2.rot(-float(self.localizer.world_from_odom[2])) @ qdot[:2]
+        out[:2] = se2.rot(-float(localizer.world_from_odom[2])) @ qdot[:2]
         return out
 
     def localize(self, frames: tuple[DepthFrame, ...]) -> None:
         """Register the frames localization wants (at their exposure, posed by the current estimate) against
         the map's trusted surfaces; hand the objects that disagreed to the map as change evidence; watch the
-        pose's health (`watch_health`)."""
+        pose's health (`watch_health`). Live, the registrations run on the localization worker's thread
+        (`localization_worker`: handed over here, never waited for); lockstep, here and now (deterministic)."""
         localizer = self.localizer
-        if localizer is None:
+        if localizer is None or not self.localizing:
+            return
+        worker = self.localization_worker
+        if worker is not None:
+            worker.submit([(f, self._base_at(f.t)) for f in frames if localizer.wants(f)])
             return
         for frame in frames:
-            if not localizer.wants(frame):
-                continue
-            with self.lock:  # the frames are already moved back to their exposure: frame.t is that time
-                exposure = self.history.at(frame.t)
-            base = (exposure or self.state).q[:3]
-            localizer.correct(frame, base, self._reference_surface(frame.t))
+            if localizer.wants(frame):  # asked frame by frame: a registration makes the next frames unwanted
+                self.register(frame, self._base_at(frame.t))
+        self.after_registrations()
+
+    def _base_at(self, t: float) -> np.ndarray:
+        """The base pose at robot time t (a frame's exposure: the frames are already moved back to it)."""
+        with self.lock:
+            exposure = self.history.at(t)
+            return (exposure or self.state).q[:3].copy()
+
+    def register(self, frame: DepthFrame, base: np.ndarray) -> Correction | None:
+        """One registration of `frame` (the base at `base` at its exposure) against the map's trusted surfaces
+        (`Localizer.correct`: the slow part); its correction becomes due at the frame's stamp plus the modelled
+        processing time, applied by `observe`. None while the localizer is off."""
+        localizer = self.localizer
+        if localizer is None or not self.localizing:
+            return None
+        return localizer.correct(frame, base, self._reference_surface(frame.t))
+
+    def after_registrations(self) -> None:
+        """Watch the pose's health now; hand the objects the registrations found disagreeing to the map as change
+        evidence."""
         with self.lock:
             now = self.state.t
         self.watch_health(now)
-        evidence = localizer.take_change_evidence()
+        localizer = self.localizer
+        evidence = localizer.take_change_evidence() if localizer is not None else ()
         if evidence:
             with self.using_map() as world_map:
                 note = getattr(world_map, "note_change_evidence", None)
@@ -609,7 +678,8 @@ class ClosedLoop:
                     note(evidence)
 
     def _reference_surface(self, t: float) -> ReferenceSurface:
-        """The map's trusted surfaces, asked for at most every `reference_period_s`."""
+        """The map's trusted surfaces, asked for at most every `reference_period_s` (the map's lock is held only
+        to read the map, not while the surface is sampled from it)."""
         p = self.config.localization
         if self._surface is None or t >= self._surface.t + p.reference_period_s:
             if self.reference_override is not None:
@@ -617,8 +687,9 @@ class ClosedLoop:
                 return self._surface
             with self.using_map() as world_map:
                 snap = world_map.snapshot()
-                surface = (trusted_surface(snap, p.trust_consistency, p.trust_observations) if snap.objects
-                           else occupied_surface(t, world_map.occupied_points()))
+                occupied = None if snap.objects else world_map.occupied_points()
+            surface = (trusted_surface(snap, p.trust_consistency, p.trust_observations) if occupied is None
+                       else occupied_surface(t, occupied))
             self._surface = replace(surface, t=t)
         return self._surface
 
@@ -793,8 +864,8 @@ class ClosedLoop:
         (`LocalizationParams.grow_margin`; zero growth while σ is small); an untrusted pose is also watched here
         (call under `step_lock`)."""
         health = self.watch_health(t)
-        if health is not None:
-            controller.set_delta_safe(self.config.htmpc.delta_safe_m + health.margin_growth_m)
+        if self.localizer is not None:  # no growth while the robot localizes itself (no health of ours then)
+            controller.set_delta_safe(self.config.htmpc.delta_safe_m + (health.margin_growth_m if health else 0.0))
 
     def watch_health(self, t: float) -> LocalizationHealth | None:
         """The pose's health at robot time t; a new untrusted episode is recorded as a problem (once) and told to

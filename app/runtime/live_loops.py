@@ -8,12 +8,15 @@
   and voxel maps in a process of their own (`app/runtime/map_process.py`: mapping held the GIL these loops need);
 - control: one control step (and a run-log row) per control period of robot time, woken by the io loop, and
   (`HTMPCParams.control_on_new_map`) by the mapping loop as soon as the map has taken a new frame;
+- localization (with `LocalizationParams.enabled`): the localizer's registrations of the frames the mapping loop
+  hands over, off the control and mapping threads (`app/runtime/localization_worker.py`; the io loop applies the
+  corrections as they fall due), and the pose's health watched at least every `HEALTH_PERIOD_S`, frames or not;
 - publish: a snapshot to the subscribers at `publish_hz`;
 - watchdog: every loop must keep beating; a dead or stalled loop is a fault.
 
 The loops, and the other threads of the process (the bridge's event loop), run at the raised priority of
 `RuntimeConfig.live_niceness` where the system allows it (`app/thread_priority.py`); the mapping process
-`map_process.NICENESS` below them.
+`map_process.NICENESS` below them, and so does the localization thread.
 
 Each loop is a `SupervisedLoop`: an exception of any kind in an iteration faults the run (the robot brakes
 within its limits, see `ClosedLoop.fault`) and the loop goes on, so no loop is silently dead. After a
@@ -30,6 +33,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from app.runtime.closed_loop import ClosedLoop
+from app.runtime.localization_worker import LocalizationWorker
 from app.runtime.map_process import NICENESS, MapProcess
 from app.runtime.problems import ProblemKind
 from app.runtime.snapshot import RunState
@@ -42,7 +46,7 @@ PHYSICS_STEP_S = 0.01
 """Sim time advanced per physics iteration (its wall period is this / speed)."""
 MAP_WAIT_S = 0.2
 WATCHDOG_PERIOD_S = 0.2
-STALL_AFTER_S = {"physics": 5.0, "io": 5.0, "mapping": 15.0, "control": 5.0, "publish": 15.0}
+STALL_AFTER_S = {"physics": 5.0, "io": 5.0, "mapping": 15.0, "control": 5.0, "publish": 15.0, "localization": 15.0}
 """A loop that has not finished an iteration for this long (wall s) is stalled: a fault. Generous, so that
 a loaded machine does not fault spuriously (the first physics step, which creates the cameras' GL
 contexts, took 1.5 s at load 8 on 2 cores); a late control loop is caught sooner by the plan's age
@@ -161,6 +165,11 @@ class LiveLoops:
         self.loops = [SupervisedLoop("io", self._io_tick, fault, self._io_period),
                       SupervisedLoop("mapping", self._map_tick, fault), self.control,
                       SupervisedLoop("publish", self._publish, fault, lambda: 1.0 / self.publish_hz)]
+        self.localization: LocalizationWorker | None = None
+        """The registrations' worker (with a localizer: `LocalizationParams.enabled` on a perceived map)."""
+        if loop.localizer is not None:
+            self.localization = LocalizationWorker(loop)
+            self.loops.append(SupervisedLoop("localization", self.localization.tick, fault))
         self.physics: SupervisedLoop | None = None
         backend = loop.backend
         if steps_in_lockstep(backend):
@@ -178,7 +187,11 @@ class LiveLoops:
         niceness = self.loop.config.live_niceness
         boosted = niceness is not None and boost_threads(niceness)
         for loop in [*self.loops, self.watchdog]:
-            loop.niceness = niceness if boosted else None
+            loop.niceness = niceness if boosted and loop.name != "localization" else None
+        if self.localization is not None:  # below the loops that keep time, as the mapping process is
+            base = niceness if boosted and niceness is not None else thread_niceness()
+            self.localization.niceness = base + NICENESS
+        self.loop.localization_worker = self.localization
         if self.loop.config.map_process:
             self.loop.isolate_map(map_process, (niceness if niceness is not None and boosted else thread_niceness())
                                   + NICENESS)
@@ -200,6 +213,8 @@ class LiveLoops:
             loop.stop()
         self._control_due.set()
         self.loop.wake_mapping()
+        if self.localization is not None:
+            self.localization.wake()
         stuck = [loop.name for loop in [self.watchdog, *self.loops] if not loop.join(timeout_s)]
         if stuck and isinstance(self.loop.map, MapProcess) and self.loop.map.calling is not None:
             self.loop.map.abort()

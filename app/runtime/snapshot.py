@@ -14,7 +14,7 @@ from app.runtime.problems import ProblemCount
 from app.runtime.target_marks import TargetMark
 from core.localization import LocalizationHealth
 from core.scene import Box
-from core.types import DepthFrame, ObjectMapSnapshot, Plan, RobotState
+from core.types import DepthFrame, ObjectMapSnapshot, Plan, PoseSource, RobotState
 from tasks.anchors import MapObjects
 from tasks.sequencer import SubtaskProgress
 
@@ -96,3 +96,6 @@ class Snapshot:
     """The pose estimate's health (`core/localization/health.py`): its covariance P and stds σ_xy, σ_yaw, the
     registrations accepted, rejected and degenerate so far, the age of the last accepted correction, the correction
     rate, why the pose is untrusted (None: trusted) and the margin the controller adds; None without localization."""
+    pose_source: PoseSource = PoseSource.ODOMETRY
+    """What the robot reports as its base pose: its odometry (corrected by the localizer with localization on) or a
+    pose it localized itself (used as it is: the localizer is off for it, and `localization` is None)."""

@@ -60,7 +60,7 @@ def build_snapshot(loop: ClosedLoop, seq: int, messages: tuple[str, ...], sequen
         constraint=r.config.constraint, speed=r.config.speed, messages=messages, fault=r.fault, command=r.command,
         depth_frames=r.frames, problems=loop.problems.counts(), targets=target_marks(r.sequence, r.view.progress),
         anchors=r.objects, base_estimate=r.base_estimate, base_true=r.base_true,
-        localization=r.localization)
+        localization=r.localization, pose_source=r.pose_source)
 
 
 def _map_view(loop: ClosedLoop) -> tuple[ObjectMapSnapshot | None, np.ndarray | None]:
