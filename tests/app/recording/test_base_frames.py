@@ -19,6 +19,7 @@ from app.runtime.snapshot import Snapshot
 from core.params import LocalizationParams
 from core.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
+from tests.app.recording.test_recording import LAYOUT, LOCALIZATION_TOPIC, _resolve, layout_paths
 
 SCENE = Scene((Box("a", (2.0, 0.8, 0.3)), Box("b", (1.5, -1.0, 0.3))))
 DRIVE = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=2.5, y=-0.2))])
@@ -85,6 +86,24 @@ def test_the_pose_health_is_recorded_and_the_replay_reads_it(localized) -> None:
     np.testing.assert_allclose(last.localization.covariance, health[-1]["covariance"], atol=1e-9)
     assert last.localization.sigma_xy_m == pytest.approx(health[-1]["sigma_xy_m"])
     assert last.localization.untrusted == health[-1]["untrusted"]
+
+
+def test_the_foxglove_layout_plots_the_pose_health(localized) -> None:
+    """docs/foxglove_layout.json plots `/localization/health` (σ_xy, the margin's growth, the correction rate and
+    the age of the last correction); every path resolves to numbers in a recording with localization."""
+    layout = json.loads(LAYOUT.read_text())
+    assert sorted(_leaves(layout["layout"])) == sorted(layout["configById"])
+    paths = [p for p in layout_paths(layout) if p.startswith(LOCALIZATION_TOPIC + ".")]
+    fields = {p[len(LOCALIZATION_TOPIC) + 1:] for p in paths}
+    assert {"sigma_xy_m", "margin_growth_m", "accepted_per_s", "since_accepted_s"} <= fields, fields
+    last = _messages(localized, LOCALIZATION_TOPIC)[-1]
+    for path in paths:
+        values = _resolve(last, path[len(LOCALIZATION_TOPIC):])
+        assert values and all(isinstance(v, int | float) for v in values), path
+
+
+def _leaves(node) -> list[str]:
+    return [node] if isinstance(node, str) else [*_leaves(node["first"]), *_leaves(node["second"])]
 
 
 def test_without_localization_the_true_base_is_the_state_when_sensing_is_exact() -> None:
