@@ -19,7 +19,7 @@ from app.runtime.problems import ProblemKind
 from core.localization.gates import Verdict
 from core.params import LocalizationParams
 from core.types import PoseSource
-from tests.app.bridge.conftest import wait_until
+from tests.app.bridge.conftest import send_state, wait_until
 
 CORRIDOR_YAML = """name: corridor
 walls: false
@@ -51,6 +51,20 @@ def _scene(tmp_path: Path) -> Path:
     path = tmp_path / "corridor.yaml"
     path.write_text(CORRIDOR_YAML)
     return path
+
+
+def test_the_state_says_what_the_pose_is_and_the_robot_reports_it(bridge: BridgeServer, raw_driver) -> None:
+    """`pose_source` is odometry unless the driver says its pose is localized; the bridge's robot reports it with
+    every observation, and /api/health shows the latest."""
+    send_state(raw_driver, 1.0)
+    assert wait_until(lambda: bridge.link.state is not None)
+    assert bridge.robot.observe().pose_source == PoseSource.ODOMETRY
+    assert httpx.get(f"{bridge.url}/api/health", timeout=30).json()["pose_source"] == "odometry"
+    send_state(raw_driver, 1.01, pose_source="localized")
+    assert wait_until(lambda: bridge.link.pose_source == PoseSource.LOCALIZED)
+    assert bridge.robot.observe().pose_source == PoseSource.LOCALIZED
+    health = httpx.get(f"{bridge.url}/api/health", timeout=30).json()
+    assert health["pose_source"] == "localized" and health["localized_by"] is None  # no runtime attached
 
 
 @pytest.mark.slow

@@ -82,6 +82,8 @@ MALFORMED_TEXT = [
      "state.x: Extra inputs are not permitted"),
     ('{"type": "state", "t": "1.0", "q": [0,0,0,0,0,0,0,0,0], "v": [0,0,0,0,0,0,0,0,0]}', "invalid_state",
      "state.t: Input should be a valid number"),
+    ('{"type": "state", "t": 1.0, "q": [0,0,0,0,0,0,0,0,0], "v": [0,0,0,0,0,0,0,0,0], "pose_source": "slam"}',
+     "invalid_state", "state.pose_source: Input should be 'odometry' or 'localized'"),
     ('{"type": "teleport"}', "invalid_message", "does not match any of the expected tags"),
     ("[1, 2, 3]", "invalid_message", "object"),
     ('{"type": "ack", "seq": 99999, "t": 0.0}', "stale_ack", "not awaiting an ack"),
