@@ -83,6 +83,9 @@ def _serve(conn: Connection, niceness: int) -> None:
                 value = (world_map.snapshot(), world_map.occupied_points(), dict(world_map.timings_ms), edf, centre)
             elif op == "local_edf":
                 value = world_map.local_edf(arg)
+            elif op == "note_change_evidence":
+                note = getattr(world_map, "note_change_evidence", None)  # maps with objects only
+                value = None if note is None else note(arg)
             elif op == "close":
                 conn.send(("ok", world_map))
                 return
@@ -215,6 +218,22 @@ class MapProcess:
                 return
             snapshot, occupied, timings, edf, centre = self._call("integrate", obs)
             self._latest = _Latest(snapshot, occupied, timings, edf, centre)
+
+    def note_change_evidence(self, ids: tuple[int, ...]) -> None:
+        """Objects localization found off their surfaces (`ObjectMapper.note_change_evidence`), for the map in the
+        worker (after an integration in progress; the next integration's snapshot shows it). A map without objects
+        ignores them."""
+        ids = tuple(int(i) for i in ids)
+        with self._pipe:
+            if self._closed:
+                return
+            here = self._here()
+            if here is not None:
+                note = getattr(here, "note_change_evidence", None)
+                if note is not None:
+                    note(ids)
+                return
+            self._call("note_change_evidence", ids)
 
     def snapshot(self) -> ObjectMapSnapshot:
         with self._pipe if self._local is not None else contextlib.nullcontext():

@@ -55,6 +55,34 @@ def test_the_isolated_map_matches_the_same_map_here(observations):
     assert isinstance(back, ObjectMapper) and len(back.snapshot().objects) == len(here.snapshot().objects)
 
 
+def test_change_evidence_from_localization_reaches_the_map_in_the_worker(observations):
+    """Live, localization hands the objects it found off their surfaces to the isolated map: the worker's map takes
+    the same forced outlier as the map here would."""
+    robot, obs = observations
+    here, there = ObjectMapper(robot, MappingParams()), MapProcess(ObjectMapper(robot, MappingParams()))
+    try:
+        assert wait_until(lambda: there.local_edf(np.zeros(2)) is not None and there.isolated, timeout_s=60)
+        for o in obs[:3]:
+            here.integrate(o)
+            there.integrate(o)
+        ids = tuple(o.id for o in here.snapshot().objects)
+        assert ids
+        here.note_change_evidence(ids)
+        there.note_change_evidence(ids)
+        here.integrate(obs[3])
+        there.integrate(obs[3])
+        mine = {o.id: o.consistency for o in here.snapshot().objects}
+        theirs = {o.id: o.consistency for o in there.snapshot().objects}
+        assert theirs == pytest.approx(mine)
+        untouched = ObjectMapper(robot, MappingParams())
+        for o in obs:
+            untouched.integrate(o)
+        before = {o.id: o.consistency for o in untouched.snapshot().objects}
+        assert any(theirs[i] < before[i] for i in ids if i in theirs and i in before) or set(ids) - set(theirs)
+    finally:
+        there.close()
+
+
 def test_a_failing_or_dead_worker_raises_map_process_errors(observations):
     robot, obs = observations
     there = MapProcess(ObjectMapper(robot, MappingParams()))
