@@ -20,6 +20,10 @@ Figures, each suffixed with its condition:
   the starts of consecutive control steps (nominally 100 ms); `control_late_pct`: control steps that started more
   than one period late (robot time) and `control_lateness_ms_p95`;
 - `command_gap_ms_p50`/`_p99`/`_max`: wall time between consecutive commands of the io loop (nominally 10 ms);
+- `interpreter_wait_ms_p99`/`_max`: how late a probe thread of this process woke from 1 ms sleeps: the longest
+  anything held the GIL (small_gicp holds it while it aligns and builds the reference's tree), plus scheduling;
+- `reference_ms_p95`/`_max`: rebuilding the registration's target (the reference's k-d tree and covariances) when
+  the reference or the base's 1 m cell changed, one call holding the GIL;
 - `ate_rmse_m`, `final_error_m`: the pose the loop uses against the simulator's truth, sampled every 0.1 s.
 
 The run's load average is in `machine` and `load_avg_before` / `load_avg_after`: live timings on a shared 2-core
@@ -31,6 +35,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import threading
 import time
 from dataclasses import replace
 
@@ -54,6 +59,28 @@ WARM_UP_S = 3.0
 """Wall seconds after Start that are not measured (the first control steps, the map process taking over)."""
 
 
+class InterpreterProbe:
+    """A thread that sleeps 1 ms at a time and records how much later than that it woke (ms): while another thread
+    holds the GIL in C code, it cannot wake."""
+
+    def __init__(self) -> None:
+        self.late_ms: list[float] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="probe", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            t0 = time.perf_counter()
+            time.sleep(0.001)
+            self.late_ms.append((time.perf_counter() - t0) * 1e3 - 1.0)
+
+    def stop(self) -> list[float]:
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        return self.late_ms
+
+
 def run(condition: str, seconds: float, seed: int = 0) -> dict[str, float]:
     """One live run of `seconds` wall time in `condition` (off, on, inline); its figures."""
     enabled = condition != "off"
@@ -75,6 +102,7 @@ def run(condition: str, seconds: float, seed: int = 0) -> dict[str, float]:
     worker = live.localization
     wall_start = len(worker.wall_ms) if worker is not None else 0
     errors: list[float] = []
+    probe = InterpreterProbe()
     t_end = time.monotonic() + seconds
     while time.monotonic() < t_end:
         reading = loop.reading()
@@ -82,6 +110,7 @@ def run(condition: str, seconds: float, seed: int = 0) -> dict[str, float]:
             errors.append(float(np.linalg.norm(reading.state.q[:2] - reading.base_true[:2])))
         time.sleep(0.1)
     stamps, loop.stamps = loop.stamps, None
+    waits = probe.stop()
     lateness = list(live.control_lateness_s)[lateness_start:]
     late, steps = live.control.stats.late - late_start, live.control_steps - steps_start
     corrections = list(localizer.corrections)[corrections_start:] if localizer is not None else []
@@ -110,12 +139,16 @@ def run(condition: str, seconds: float, seed: int = 0) -> dict[str, float]:
         "command_gap_ms_p50": percentile(gaps, 50),
         "command_gap_ms_p99": percentile(gaps, 99),
         "command_gap_ms_max": float(np.max(gaps)) if len(gaps) else math.nan,
+        "interpreter_wait_ms_p99": percentile(waits, 99),
+        "interpreter_wait_ms_max": float(np.max(waits)) if waits else math.nan,
         "ate_rmse_m": float(np.sqrt(np.nanmean(err**2))),
         "final_error_m": float(err[-1]),
         "faulted": float(fault is not None),
     }
     if enabled:
+        ref = [c.reference_ms for c in corrections if c.reference_ms > 0]
         f |= {"registration_ms_p50": percentile(reg, 50), "registration_ms_p95": percentile(reg, 95),
+              "reference_ms_p95": percentile(ref, 95), "reference_ms_max": float(max(ref)) if ref else math.nan,
               "registrations_per_s": len(corrections) / seconds,
               "accepted": float(sum(c.verdict == Verdict.ACCEPTED for c in corrections))}
         if condition == "on":
