@@ -54,7 +54,7 @@ log = logging.getLogger(__name__)
 
 NAME = "localization_live"
 CONDITIONS = ("off", "on", "inline")
-QUICK_S, FULL_S = 15.0, 90.0
+QUICK_S, FULL_S = 10.0, 90.0
 WARM_UP_S = 3.0
 """Wall seconds after Start that are not measured (the first control steps, the map process taking over)."""
 
