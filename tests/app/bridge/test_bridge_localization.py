@@ -19,7 +19,7 @@ from app.runtime.problems import ProblemKind
 from core.localization.gates import Verdict
 from core.params import LocalizationParams
 from core.types import PoseSource
-from tests.app.bridge.conftest import send_state, wait_until
+from tests.app.bridge.conftest import StateStreamer, send_state, wait_until
 
 CORRIDOR_YAML = """name: corridor
 walls: false
@@ -65,6 +65,25 @@ def test_the_state_says_what_the_pose_is_and_the_robot_reports_it(bridge: Bridge
     assert bridge.robot.observe().pose_source == PoseSource.LOCALIZED
     health = httpx.get(f"{bridge.url}/api/health", timeout=30).json()
     assert health["pose_source"] == "localized" and health["localized_by"] is None  # no runtime attached
+
+
+def test_the_localizer_counts_from_the_drivers_first_state_not_from_zero(bridge: BridgeServer, raw_driver) -> None:
+    """A runtime made before the driver's first state begins at the placeholder's t = 0; a driver's steady clock
+    may read hours: the time without a correction counts from its first state, so the pose is not untrusted at
+    once."""
+    rt = Runtime(RuntimeConfig(map_kind="object", localization=LocalizationParams(enabled=True)),
+                 backend=bridge.robot)
+    try:
+        loop = rt.closed_loop
+        assert loop.state.t == 0.0
+        with StateStreamer(raw_driver, t0=5000.0):
+            assert wait_until(lambda: bridge.link.state is not None)
+            loop.observe(0.01)
+        health = loop.health(loop.state.t)
+        assert loop.state.t >= 5000.0 and health is not None
+        assert health.untrusted is None and health.since_accepted_s < 1.0, health
+    finally:
+        rt.shutdown()
 
 
 @pytest.mark.slow
