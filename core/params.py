@@ -590,7 +590,7 @@ class LocalizationParams:
     while the pose is trusted by its σ. False: delta_safe as configured, whatever the uncertainty."""
     margin_growth_max_m: float = 0.3
     """The most the margin grows (m): beyond it the robot would not pass anything at all."""
-    lost_after_s: float = 1.0
+    lost_after_s: float = 0.5
     """Lost (`core/localization/lost.py`): registrations that had trusted surface in view and were refused by a gate
     (χ², inconsistent, few inliers, not converged) one after another for at least this long (s of robot time,
     first to last refused frame; no accepted, degenerate or empty one between)…"""

@@ -636,9 +636,7 @@ class ClosedLoop:
                 if self.fault_reason is None:
                     self.plan = self._braking_plan(self.state.t, "localization lost: holding the base")
                     self._pending_plans.clear()
-            reason = localizer.lost.reason() or "lost"
-            self.problems.record(ProblemKind.LOCALIZATION, t, reason)
-            self.notify(f"localization {reason}")
+                self._untrusted = False  # a new untrusted episode, whatever came before: `watch_health` records it
         elif not lost and self.held_for_search:
             with self.lock:
                 self.held_for_search = False

@@ -94,7 +94,6 @@ class LostWatch:
             self.doubted_t = t
             if len(self.streak) >= p.lost_min_refusals and t - self.streak[0] >= p.lost_after_s - 1e-9:
                 self.lost = True
-                self.drop_until_t = math.inf
                 self.episodes.append(Episode(self.streak[0], t))
                 return True
         elif verdict == Verdict.ACCEPTED or verdict in UNJUDGED:
