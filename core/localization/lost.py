@@ -11,8 +11,9 @@ meanwhile, and the global search that ends it (docs/method.md, "State estimation
   frame not confirmed is dropped, and so is every frame until the re-anchoring has been applied: the map never
   integrates a frame at a pose that has jumped.
 - **Lost.** A streak of at least `lost_min_refusals` refusals over at least `lost_after_s`: the loop holds the base
-  (brakes to rest and plans nothing), and each frame the localizer wants runs a global search (`global_search.py`)
-  instead of a registration, one at a time, its outcome due `search_processing_s` after the frame. A unique answer
+  (brakes to rest and plans nothing), and once the base is at rest each frame the localizer wants runs a global
+  search (`global_search.py`) instead of a registration, one at a time, its outcome due `search_processing_s` after
+  the frame. A unique answer
   re-anchors T_world←odom (P restarts at `search_sigma_m` / `search_sigma_rad`) and, once applied, the run goes on;
   after `search_tries` searches without one, `failed` holds the reason ("lost localization: …") and the loop faults.
 
@@ -40,6 +41,10 @@ DISAGREEING = (Verdict.CHI2, Verdict.INCONSISTENT, Verdict.FEW_INLIERS, Verdict.
 """Verdicts that say the frame does not fit where the estimate puts it."""
 UNJUDGED = (Verdict.NO_REFERENCE, Verdict.TOO_FEW_POINTS)
 """Verdicts with nothing to judge by: no evidence of a jump, the streak ends."""
+REST_M = 0.005
+REST_RAD = 0.005
+"""The base is at rest for a search when it moved less than these (m, rad) between two frames offered (0.2 s apart at
+5 Hz: 2.5 cm/s)."""
 INTEGRATE, HOLD, DROP = "integrate", "hold", "drop"
 """What becomes of a frame (`LostWatch.fate`)."""
 
@@ -79,6 +84,7 @@ class LostWatch:
         self.failed: str | None = None
         """Why the localizer gave up ("lost localization: …"); the loop faults with it."""
         self.episodes: list[Episode] = []
+        self._last_pose: np.ndarray | None = None
 
     @property
     def tries(self) -> int:
@@ -103,9 +109,15 @@ class LostWatch:
             self.streak = []  # degenerate ever since: the refusals stopped (the frames held meanwhile are dropped)
         return False
 
-    def wants_search(self, t: float) -> bool:
-        """Whether the frame exposed at t runs a search (lost, none under way, none succeeded, not failed)."""
-        return self.lost and self.resume_t is None and self.failed is None and t >= self.busy_until_t - 1e-9
+    def wants_search(self, t: float, base_pose: np.ndarray) -> bool:
+        """Whether the frame exposed at t, the base at `base_pose` (by odometry) then, runs a search: lost, none under
+        way, none succeeded, not failed, and the base at rest (it moved less than `REST_M` / `REST_RAD` since the last
+        frame offered: a frame taken while braking is posed less well than one taken at rest)."""
+        last, self._last_pose = self._last_pose, np.asarray(base_pose, float).copy()
+        if not (self.lost and self.resume_t is None and self.failed is None and t >= self.busy_until_t - 1e-9):
+            return False
+        return last is not None and bool(np.hypot(*(base_pose[:2] - last[:2])) < REST_M
+                                          and abs(base_pose[2] - last[2]) < REST_RAD)
 
     def searched(self, t: float, result: SearchResult) -> float:
         """Record a search of the frame exposed at t; the robot time its outcome is due."""
@@ -164,7 +176,7 @@ def search_frame(loc: Localizer, frame: DepthFrame, base_pose: np.ndarray, surfa
 
     p = loc.params
     with loc.lock:
-        due = loc.lost.wants_search(frame.t)
+        due = loc.lost.wants_search(frame.t, base_pose)
     if not due:
         return Correction(frame.t, Verdict.SEARCHED)
     if loc.frozen is not None:

@@ -56,7 +56,10 @@ def test_a_slip_among_boxes_gets_lost_and_the_search_re_anchors_within_centimetr
     # frames exposed since the last confirmed one are in doubt: dropped now that the localizer is lost
     assert loc.lost.fate(1.0, t) == INTEGRATE and loc.lost.fate(episode.refused_t - 0.05, t) == DROP
     assert "lost: searching" in (loc.health(t, 0.25).untrusted or "")
-    frame, base = _drifted_frame(BOXES, slip, t=t)
+    frame, base = _drifted_frame(BOXES, slip, t=t)  # the first frame while lost: is the base at rest?
+    c = loc.correct(frame, base, surface_of(BOXES))
+    assert c.verdict == Verdict.SEARCHED and c.pose is None and not loc.lost.episodes[-1].searches
+    frame, base = _drifted_frame(BOXES, slip, t=t + PERIOD_S)  # it did not move: search
     c = loc.correct(frame, base, surface_of(BOXES))
     assert c.verdict == Verdict.SEARCHED and c.pose is not None
     result = loc.lost.episodes[-1].searches[-1][1]
@@ -75,6 +78,9 @@ def test_a_slip_among_boxes_gets_lost_and_the_search_re_anchors_within_centimetr
 def test_along_a_single_wall_the_search_is_not_unique_and_the_localizer_gives_up():
     loc, t = _slipped(WALL, np.array([0.5, 0.0, 0.0]))  # toward the wall: the registrations disagree across it
     p = loc.params
+    frame, base = _drifted_frame(WALL, np.array([0.5, 0.0, 0.0]), t=t)
+    loc.correct(frame, base, surface_of(WALL))  # the first frame while lost: the base at rest from the next one on
+    t += PERIOD_S
     for k in range(p.search_tries):
         frame, base = _drifted_frame(WALL, np.array([0.5, 0.0, 0.0]), t=t)
         assert loc.correct(frame, base, surface_of(WALL)).verdict == Verdict.SEARCHED
