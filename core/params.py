@@ -592,8 +592,9 @@ class LocalizationParams:
     """The most the margin grows (m): beyond it the robot would not pass anything at all."""
     lost_after_s: float = 0.5
     """Lost (`core/localization/lost.py`): registrations that had trusted surface in view and were refused by a gate
-    (χ², inconsistent, few inliers, not converged) one after another for at least this long (s of robot time,
-    first to last refused frame; no accepted, degenerate or empty one between)…"""
+    (χ², inconsistent, few inliers) one after another for at least this long (s of robot time, first to last refused
+    frame; no accepted one and none with nothing to register against between; degenerate and not converged ones
+    neither break nor extend the streak)…"""
     lost_min_refusals: int = 3
     """…and at least this many of them make the localizer LOST: the base stops, mapping pauses and a global search
     runs. From the first such refusal frames wait (are not integrated) until a registration passes again."""
@@ -619,12 +620,16 @@ class LocalizationParams:
     search_inlier_m: float = 0.05
     """A registered guess's score: the share of the frame's points above the floor within this distance (m) of an
     object surface."""
-    search_min_score: float = 0.6
-    """The best registered guess is accepted only with at least this score…"""
+    search_min_score: float = 0.8
+    """The best registered guess is accepted only with at least this score… (the slips of
+    `tests/app/test_localization_slip.py` were found at 0.98–0.99; on E4's aisle a false alarm's best guess, 1.2 m
+    off, scored 0.61)"""
     search_margin: float = 0.15
     """…and only if it is unique: every registered guess ending at a distinct pose (farther than `search_distinct_m`
     or `search_distinct_rad` from the best) scores at least this much less (shares; a uniform wall, where every
-    guess along it fits alike, is not unique)."""
+    guess along it fits alike, is not unique). Before any of that: if the estimate itself (no offset) scores within
+    this of the best guess before registration, nothing jumped beyond `search_coarse_m` and the run goes on from
+    the estimate."""
     search_distinct_m: float = 0.15
     search_distinct_rad: float = math.radians(5.0)
     """Two registered guesses are the same pose within these (m, rad)."""

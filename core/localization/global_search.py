@@ -12,7 +12,9 @@ surfaces, `reference.py`):
      the share within `search_inlier_m`;
   4. the best result is accepted only if it is unique: its score at least `search_min_score`, and every result at
      a distinct pose (farther than `search_distinct_m` / `search_distinct_rad` from it) at least `search_margin`
-     below it. Along a uniform wall every guess fits alike: no unique answer, and the caller faults.
+     below it. Along a uniform wall every guess fits alike: no unique answer, and the caller faults. Registrations
+     that run off the searched window are left out. Whether the estimate itself fits about as well as the best
+     guess (`SearchResult.estimate_fits`) is reported too: the caller's way out of a false alarm.
 Deterministic (one thread, a fixed grid, stable sorts), so lockstep runs repeat.
 """
 
@@ -59,6 +61,9 @@ class SearchResult:
     refined: int
     ms: float
     reason: str = ""
+    estimate_fits: bool = False
+    """The estimate itself (the guess at zero offset) scores within `search_margin` of the best guess before
+    registration: whatever disagreed, the frame fits where the estimate puts it about as well as anywhere searched."""
 
     @property
     def margin(self) -> float:
@@ -100,6 +105,8 @@ def search(ref: Reference, target: registration.Target, source, T_world_camera: 
     base_pose = np.asarray(base_pose, float)
     motions = [_motion(base_pose, o) for o in grid]
     coarse = np.array([_score(surfaces, above, D, p.search_coarse_m) for D in motions])
+    zero = int(np.argmin(np.abs(grid).sum(axis=1)))
+    fits = bool(coarse[zero] >= coarse.max() - p.search_margin)
     picked = _spread(np.argsort(-coarse, kind="stable"), grid, p)
     candidates = []
     for g in picked:
@@ -107,20 +114,24 @@ def search(ref: Reference, target: registration.Target, source, T_world_camera: 
         r = registration.register(target, source, T_init, p.radius_max_m, 2 * p.max_iterations)
         D = r.T_world_camera @ np.linalg.inv(T_world_camera)
         pose = se2.compose(se2.from_matrix(D), base_pose)
+        if not _within(pose, base_pose, p):  # run off the searched window: not a place searched
+            continue
         candidates.append(Candidate(pose, _score(surfaces, above, se2.to_matrix(se2.from_matrix(D)), p.search_inlier_m),
                                     float(coarse[g]), grid[g].copy()))
+    ms = (time.perf_counter() - t0) * 1e3
+    if not candidates:
+        return SearchResult(False, None, None, len(grid), 0, ms, "every registration ran off the window", fits)
     candidates.sort(key=lambda c: -c.score)
     best = candidates[0]
     runner_up = next((c for c in candidates[1:] if _distinct(c.pose, best.pose, p)), None)
-    ms = (time.perf_counter() - t0) * 1e3
     if best.score < p.search_min_score:
         return SearchResult(False, best, runner_up, len(grid), len(candidates), ms,
-                            f"best fit {best.score:.2f} < {p.search_min_score:g}")
+                            f"best fit {best.score:.2f} < {p.search_min_score:g}", fits)
     if runner_up is not None and runner_up.score > best.score - p.search_margin:
         return SearchResult(False, best, runner_up, len(grid), len(candidates), ms,
                             f"not unique: {best.score:.2f} and {runner_up.score:.2f} "
-                            f"{np.hypot(*(runner_up.pose[:2] - best.pose[:2])):.2f} m apart")
-    return SearchResult(True, best, runner_up, len(grid), len(candidates), ms)
+                            f"{np.hypot(*(runner_up.pose[:2] - best.pose[:2])):.2f} m apart", fits)
+    return SearchResult(True, best, runner_up, len(grid), len(candidates), ms, "", fits)
 
 
 def _motion(base_pose: np.ndarray, offset: np.ndarray) -> np.ndarray:
@@ -145,6 +156,13 @@ def _spread(order: np.ndarray, grid: np.ndarray, p: LocalizationParams) -> list[
             if len(taken) == p.search_refined:
                 break
     return taken
+
+
+def _within(pose: np.ndarray, base_pose: np.ndarray, p: LocalizationParams) -> bool:
+    """Whether `pose` lies inside the searched window around `base_pose` (one grid step of slack)."""
+    d = se2.compose(se2.inverse(base_pose), pose)
+    return bool(np.all(np.abs(d[:2]) <= p.search_xy_m + p.search_step_m)
+                and abs(d[2]) <= p.search_yaw_rad + p.search_yaw_step_rad)
 
 
 def _distinct(a: np.ndarray, b: np.ndarray, p: LocalizationParams) -> bool:

@@ -160,7 +160,8 @@ class Localizer:
         self._last_registration_t = frame.t
         self._excluded = {i: until for i, until in self._excluded.items() if until > frame.t}
         if self.lost.lost:
-            return lost.search_frame(self, frame, np.asarray(base_pose, float), surface)
+            return Correction(frame.t, Verdict.SEARCHED, **lost.search_frame(self, frame, np.asarray(base_pose, float),
+                                                                              surface))
         if self.frozen is not None:
             with self.lock:
                 sigma = self.filter.sigma_xy_m(p.max_range_m / 2)

@@ -2,9 +2,9 @@
 meanwhile, and the global search that ends it (docs/method.md, "State estimation", "Lost"; issue 28, item 3).
 
 - **Suspect.** A registration that had trusted surface in view and was refused by a gate (χ², inconsistent, few
-  inliers, not converged) while the localizer was localized starts a streak; an accepted one, or one with nothing
-  to judge (no reference, too few points), ends it. Degenerate ones neither start nor end it (a frame that fits the
-  floor alone says nothing about a jump).
+  inliers) while the localizer was localized starts a streak; an accepted one, or one with nothing to judge (no
+  reference, too few points), ends it. Degenerate and not converged ones neither start nor end it (a frame that fits
+  the floor alone says nothing about a jump, and GICP stopping at its iteration cap says little).
 - **Frames wait** (`LocalizationParams.hold_frames`): a frame is integrated only once a registration at or after its
   exposure ended no streak (`confirmed_t`); while a streak runs frames wait (and are dropped after `hold_max_s`,
   as are frames up to a refused one that no verdict confirmed); when the localizer gets lost, every
@@ -14,8 +14,11 @@ meanwhile, and the global search that ends it (docs/method.md, "State estimation
   (brakes to rest and plans nothing), and once the base is at rest each frame the localizer wants runs a global
   search (`global_search.py`) instead of a registration, one at a time, its outcome due `search_processing_s` after
   the frame. A unique answer
-  re-anchors T_world←odom (P restarts at `search_sigma_m` / `search_sigma_rad`) and, once applied, the run goes on;
-  after `search_tries` searches without one, `failed` holds the reason ("lost localization: …") and the loop faults.
+  re-anchors T_world←odom (P restarts at `search_sigma_m` / `search_sigma_rad`) and, once applied, the run goes on.
+  First, though: if the estimate itself fits about as well as the best guess before registration
+  (`SearchResult.estimate_fits`: within `search_coarse_m` the refusals came from a drifted pose, not a jump), the run
+  goes on from the estimate, re-anchored or not. After `search_tries` searches with neither, `failed` holds the
+  reason ("lost localization: …") and the loop faults.
 
 Thread use: every method is called under the localizer's lock.
 """
@@ -23,22 +26,26 @@ Thread use: every method is called under the localizer's lock.
 from __future__ import annotations
 
 import math
+import threading
+from collections import deque
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 import numpy as np
 
 from core.localization import global_search, registration, scan, se2
+from core.localization.frozen_surfaces import FrozenSurfaces
 from core.localization.gates import Verdict
 from core.localization.global_search import SearchResult
+from core.localization.pose_filter import PoseFilter
+from core.localization.reference import Reference
 from core.params import LocalizationParams
 from core.types import DepthFrame, ReferenceSurface
 
-if TYPE_CHECKING:
-    from core.localization.localizer import Correction, Localizer
-
-DISAGREEING = (Verdict.CHI2, Verdict.INCONSISTENT, Verdict.FEW_INLIERS, Verdict.NOT_CONVERGED)
-"""Verdicts that say the frame does not fit where the estimate puts it."""
+DISAGREEING = (Verdict.CHI2, Verdict.INCONSISTENT, Verdict.FEW_INLIERS)
+"""Verdicts that say the frame does not fit where the estimate puts it. Not converged says little (on E4's aisle a
+third of the registrations that were not accepted, in streaks of up to 3 while well localized), nor does degenerate:
+neither starts nor ends a streak."""
 UNJUDGED = (Verdict.NO_REFERENCE, Verdict.TOO_FEW_POINTS)
 """Verdicts with nothing to judge by: no evidence of a jump, the streak ends."""
 REST_M = 0.005
@@ -127,7 +134,10 @@ class LostWatch:
         episode = self.episodes[-1]
         searches = (*episode.searches, (t, result))
         self.episodes[-1] = Episode(episode.refused_t, episode.lost_t, searches)
-        if result.unique:
+        if result.estimate_fits:  # no jump after all (a drifted pose's refusals): go on from the estimate
+            self.resume_t = due
+            self.resume_delta = np.zeros(3)
+        elif result.unique:
             self.resume_t = due
         elif len(searches) >= p.search_tries:
             self.failed = (f"lost localization: no unique pose in {len(searches)} global searches "
@@ -167,18 +177,31 @@ class LostWatch:
         return f"lost: searching (base held, mapping paused; {self.tries} of {self.params.search_tries} searches)"
 
 
-def search_frame(loc: Localizer, frame: DepthFrame, base_pose: np.ndarray, surface: ReferenceSurface | None
-                 ) -> Correction:
+class Searcher(Protocol):
+    """What the search needs of the localizer (`Localizer`; a protocol, so that this module does not import it)."""
+
+    params: LocalizationParams
+    lock: threading.Lock
+    lost: LostWatch
+    frozen: FrozenSurfaces | None
+    filter: PoseFilter
+    _pending: deque[tuple[float, np.ndarray]]
+
+    def _prepared(self, surface: ReferenceSurface | None, centre_xy: np.ndarray
+                  ) -> tuple[Reference, registration.Target, float]: ...
+
+
+def search_frame(loc: Searcher, frame: DepthFrame, base_pose: np.ndarray, surface: ReferenceSurface | None
+                 ) -> dict[str, Any]:
     """While lost (`Localizer.correct`): a global search of `frame` (posed by the current estimate, the base at
     `base_pose` then) against the floor and the trusted surfaces (the frozen ones when frozen), when one is due; a
-    unique answer re-anchors T_world←odom at the frame's stamp + `search_processing_s` and restarts P."""
-    from core.localization.localizer import Correction  # the localizer imports this module
-
+    unique answer re-anchors T_world←odom at the frame's stamp + `search_processing_s` and restarts P. Returns the
+    fields of the frame's `Correction` (verdict SEARCHED; `pose` and `apply_t` set when it re-anchors)."""
     p = loc.params
     with loc.lock:
         due = loc.lost.wants_search(frame.t, base_pose)
     if not due:
-        return Correction(frame.t, Verdict.SEARCHED)
+        return {}
     if loc.frozen is not None:
         surface = loc.frozen.surface
     ref, target, ref_ms = loc._prepared(surface, base_pose[:2])
@@ -186,11 +209,11 @@ def search_frame(loc: Localizer, frame: DepthFrame, base_pose: np.ndarray, surfa
     result = global_search.search(ref, target, source, frame.T_world_camera, base_pose, p)
     with loc.lock:
         apply_t = loc.lost.searched(frame.t, result)
-        if not result.unique or result.best is None:
-            return Correction(frame.t, Verdict.SEARCHED, registration_ms=result.ms, reference_ms=ref_ms)
+        if result.estimate_fits or not result.unique or result.best is None:
+            return {"registration_ms": result.ms, "reference_ms": ref_ms}
         delta = se2.compose(result.best.pose, se2.inverse(base_pose))
         loc.lost.resume_delta = delta
         loc.filter.P = np.diag([p.search_sigma_m**2, p.search_sigma_m**2, p.search_sigma_rad**2])
         loc._pending.append((apply_t, delta))
-    return Correction(frame.t, Verdict.SEARCHED, delta=delta, dof=3, registration_ms=result.ms, reference_ms=ref_ms,
-                      apply_t=apply_t, pose=result.best.pose)
+    return {"delta": delta, "dof": 3, "registration_ms": result.ms, "reference_ms": ref_ms, "apply_t": apply_t,
+            "pose": result.best.pose}
