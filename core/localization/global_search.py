@@ -33,6 +33,8 @@ from core.params import LocalizationParams
 ABOVE_FLOOR_M = 0.1
 """Points higher than this (m, in the world, whatever the planar guess) are scored; lower ones are floor (depth
 noise at 3 m is about 4.5 cm)."""
+LOW_FIT = "best fit"
+"""How the reason of a search whose best registered guess scored under `search_min_score` begins."""
 MIN_SCORED_POINTS = 50
 """A frame with fewer points above the floor cannot be searched with."""
 
@@ -64,6 +66,12 @@ class SearchResult:
     estimate_fits: bool = False
     """The estimate itself (the guess at zero offset) scores within `search_margin` of the best guess before
     registration: whatever disagreed, the frame fits where the estimate puts it about as well as anywhere searched."""
+
+    @property
+    def fits(self) -> bool:
+        """Some registered guess fits the reference (scores at least `search_min_score`); False: the reference does not
+        describe this view anywhere in the window."""
+        return self.best is not None and not self.reason.startswith(LOW_FIT)
 
     @property
     def margin(self) -> float:
@@ -126,7 +134,7 @@ def search(ref: Reference, target: registration.Target, source, T_world_camera: 
     runner_up = next((c for c in candidates[1:] if _distinct(c.pose, best.pose, p)), None)
     if best.score < p.search_min_score:
         return SearchResult(False, best, runner_up, len(grid), len(candidates), ms,
-                            f"best fit {best.score:.2f} < {p.search_min_score:g}", fits)
+                            f"{LOW_FIT} {best.score:.2f} < {p.search_min_score:g}", fits)
     if runner_up is not None and runner_up.score > best.score - p.search_margin:
         return SearchResult(False, best, runner_up, len(grid), len(candidates), ms,
                             f"not unique: {best.score:.2f} and {runner_up.score:.2f} "

@@ -16,8 +16,10 @@ meanwhile, and the global search that ends it (docs/method.md, "State estimation
   the frame. A unique answer
   re-anchors T_world←odom (P restarts at `search_sigma_m` / `search_sigma_rad`) and, once applied, the run goes on.
   First, though: if the estimate itself fits about as well as the best guess before registration
-  (`SearchResult.estimate_fits`: within `search_coarse_m` the refusals came from a drifted pose, not a jump), the run
-  goes on from the estimate, re-anchored or not. After `search_tries` searches with neither, `failed` holds the
+  (`SearchResult.estimate_fits`: within `search_coarse_m` the refusals came from a drifted pose, not a jump), or if
+  the frame fits the reference nowhere in the window (no registered guess scores `search_min_score`: the reference
+  does not describe this view, and the frame cannot tell where the base is), the run goes on from the estimate.
+  Only ambiguity faults: after `search_tries` searches that found good fits at distinct poses, `failed` holds the
   reason ("lost localization: …") and the loop faults.
 
 Thread use: every method is called under the localizer's lock.
@@ -134,7 +136,7 @@ class LostWatch:
         episode = self.episodes[-1]
         searches = (*episode.searches, (t, result))
         self.episodes[-1] = Episode(episode.refused_t, episode.lost_t, searches)
-        if result.estimate_fits:  # no jump after all (a drifted pose's refusals): go on from the estimate
+        if result.estimate_fits or not result.fits:  # no jump after all, or nothing to tell: go on from the estimate
             self.resume_t = due
             self.resume_delta = np.zeros(3)
         elif result.unique:
@@ -209,7 +211,7 @@ def search_frame(loc: Searcher, frame: DepthFrame, base_pose: np.ndarray, surfac
     result = global_search.search(ref, target, source, frame.T_world_camera, base_pose, p)
     with loc.lock:
         apply_t = loc.lost.searched(frame.t, result)
-        if result.estimate_fits or not result.unique or result.best is None:
+        if result.estimate_fits or not result.unique or not result.fits or result.best is None:
             return {"registration_ms": result.ms, "reference_ms": ref_ms}
         delta = se2.compose(result.best.pose, se2.inverse(base_pose))
         loc.lost.resume_delta = delta
