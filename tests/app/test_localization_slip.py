@@ -101,12 +101,13 @@ def _run(scene: Scene, sequence: TaskSequence, slip: dict, slip_at_s: float, dur
                          ids=["0.5 m sideways", "30 degrees"])
 def test_a_slip_while_driving_stops_the_base_pauses_mapping_and_the_search_finds_the_pose_again(slip):
     """Measured (seed 3, sideways / 30°): the first refused registration at the slip's first frame (2.5 s), lost at
-    3.1 s, the base at rest by the control step at 3.72 s, one search on a frame at rest (0.5 s wall; best 0.995 / 0.978
-    against a runner-up of 0.35 / 0.44), re-anchored at 4.4 s 4.7 / 4.6 cm from the truth (the view leaves the base's
-    x weakly constrained: GICP from the true pose ends 2 cm off, from 3 cm behind it 5 cm off), at most 7.3 / 9.1 cm
-    afterwards; 42 frames dropped, none integrated from the slip to the re-anchoring, the sequence finished. Without
-    the lost state and the frames' wait (`lost_after_s` inf, `hold_frames` off) the error stays 0.51 / 0.52 m and the
-    map re-places boxes up to 0.41 / 0.81 m off; with the lost state alone 26 / 30 frames at the jumped pose go in."""
+    3.1 / 3.3 s, the base at rest by the control step at 3.72 / 3.92 s, one search on a frame at rest (best 0.995 /
+    0.960 against a runner-up of 0.35 / 0.23), re-anchored at 4.4 / 4.6 s 4.7 / 4.4 cm from the truth (the view leaves
+    the base's x weakly constrained: GICP from the true pose ends 2 cm off, from 3 cm behind it 5 cm off), at most
+    7.3 / 7.9 cm afterwards; 42 / 46 frames dropped, none integrated from the slip to the re-anchoring, the sequence
+    finished. Without the lost state and the frames' wait (`lost_after_s` inf, `hold_frames` off) the error stays
+    0.51 / 0.52 m and the map places boxes up to 0.41 / 0.81 m off; with the lost state alone 38 frames at the jumped
+    pose go in."""
     rt, trace = _run(AHEAD, OUT_AND_BACK, slip, SLIP_AT_S, 40.0)
     loop, loc = rt.closed_loop, rt.closed_loop.localizer
     assert loc is not None
