@@ -128,8 +128,8 @@ class SensorParams:
     camera_time_offset_s: float = 0.02
     """A frame is stamped this long after it was taken: its pose is the robot's estimate at the stamp, and
     it arrives then (the map compensates it: `MappingParams.camera_latency_s`)."""
-    slip_at_s: float = math.inf
-    """A one-off odometry error (a wheel slip, a kidnap) at this robot time (s; inf: never): the pose the robot
+    slip_at_s: float | None = None
+    """A one-off odometry error (a wheel slip, a kidnap) at this robot time (s; None: never): the pose the robot
     reports jumps by `slip_m` and `slip_rad` while the true robot does not move (`odometry_drift.py`). A teleport
     (`SimWorld.set_robot`) is no slip: it restarts odometry at the true pose."""
     slip_m: tuple[float, float] = (0.0, 0.0)

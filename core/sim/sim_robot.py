@@ -133,7 +133,8 @@ class SimRobot:
             self.odometry_estimate.reset(q[:3])
         else:
             self.odometry_estimate.update(q[:3])
-        if not self._slipped and self.world.time + 1e-9 >= self.sensor.slip_at_s:
+        slip_at = self.sensor.slip_at_s
+        if not self._slipped and slip_at is not None and self.world.time + 1e-9 >= slip_at:
             self._slipped = True  # once: the sensor model's one-off odometry error (`SensorParams.slip_at_s`)
             self.odometry_estimate.slip(self.sensor.slip_m, self.sensor.slip_rad)
 
