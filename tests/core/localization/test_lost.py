@@ -14,7 +14,7 @@ from core.localization import global_search, se2
 from core.localization.gates import Verdict
 from core.localization.lost import DROP, HOLD, INTEGRATE
 from core.types import LocalizationStatus
-from tests.core.localization.synthetic import FLOOR, box, surface
+from tests.core.localization.synthetic import FLOOR, Rect, box, surface
 from tests.core.localization.test_localizer import WALL, _drifted_frame, _localizer
 
 PERIOD_S = 0.2
@@ -99,3 +99,22 @@ def test_the_grid_of_guesses_covers_plus_minus_one_metre_and_thirty_degrees():
     assert np.allclose(grid.min(axis=0), [-1.0, -1.0, -math.radians(30)])
     assert np.allclose(grid.max(axis=0), [1.0, 1.0, math.radians(30)])
     assert np.any(np.all(np.abs(grid) < 1e-12, axis=1)), "the estimate itself is a guess"
+
+
+def test_a_view_the_reference_does_not_describe_is_no_jump_and_the_estimate_goes_on():
+    """Lost among the boxes, then the frames show a wall the reference does not hold: no guess fits (a false alarm's
+    case on E4's aisle, docs/decisions.md), so the localizer goes on from the estimate instead of faulting."""
+    slip = np.array([0.0, 0.5, 0.0])
+    loc, t = _slipped(BOXES, slip)
+    before = loc.world_from_odom
+    elsewhere = [FLOOR, Rect(0, 1.4, (-1.2, 0.0), (1.2, 1.5), 7)]  # a wall ahead the reference does not hold
+    for k in range(2):  # the first frame only tells that the base is at rest
+        frame, base = _drifted_frame(elsewhere, slip, t=t + k * PERIOD_S)
+        c = loc.correct(frame, base, surface_of(BOXES))
+    result = loc.lost.episodes[-1].searches[-1][1]
+    assert result.best is not None and not result.fits and not result.unique, result  # measured: best 0.51
+    assert loc.lost.failed is None and loc.lost.resume_t is not None
+    loc.apply_due(loc.lost.resume_t)
+    assert loc.status == LocalizationStatus.LOCALIZED and not loc.lost.lost
+    np.testing.assert_allclose(loc.world_from_odom, before)  # not re-anchored
+    assert c.pose is None
