@@ -7,6 +7,7 @@ docstring says why we differ.
 
 from __future__ import annotations
 
+import math
 import typing
 from dataclasses import dataclass, field, fields
 from functools import cache
@@ -127,6 +128,14 @@ class SensorParams:
     camera_time_offset_s: float = 0.02
     """A frame is stamped this long after it was taken: its pose is the robot's estimate at the stamp, and
     it arrives then (the map compensates it: `MappingParams.camera_latency_s`)."""
+    slip_at_s: float | None = None
+    """A one-off odometry error (a wheel slip, a kidnap) at this robot time (s; None: never): the pose the robot
+    reports jumps by `slip_m` and `slip_rad` while the true robot does not move (`odometry_drift.py`). A teleport
+    (`SimWorld.set_robot`) is no slip: it restarts odometry at the true pose."""
+    slip_m: tuple[float, float] = (0.0, 0.0)
+    """The slip's position error (m) along the base's x (forward) and y (left) at the slip."""
+    slip_rad: float = 0.0
+    """The slip's heading error (rad), about the base's centre."""
 
     @classmethod
     def ideal(cls) -> SensorParams:
@@ -581,6 +590,59 @@ class LocalizationParams:
     while the pose is trusted by its σ. False: delta_safe as configured, whatever the uncertainty."""
     margin_growth_max_m: float = 0.3
     """The most the margin grows (m): beyond it the robot would not pass anything at all."""
+    lost_after_s: float = 0.5
+    """Lost (`core/localization/lost.py`): registrations that had trusted surface in view and were refused by a gate
+    (χ², inconsistent, few inliers) one after another for at least this long (s of robot time, first to last refused
+    frame; no accepted one and none with nothing to register against between; degenerate and not converged ones
+    neither break nor extend the streak)…"""
+    lost_min_refusals: int = 3
+    """…and at least this many of them make the localizer LOST: the base stops, mapping pauses and a global search
+    runs. From the first such refusal frames wait (are not integrated) until a registration passes again."""
+    hold_frames: bool = True
+    """Frames wait for the verdict of the next registration at or after their exposure before the map integrates
+    them (at most 1 / `rate_hz` later), so that frames at a pose that has jumped (a slip) are never integrated:
+    dropped when the localizer gets lost. False: frames are integrated as they come (a slip's first frames go in)."""
+    hold_max_s: float = 1.0
+    """A frame waits at most this long (s of robot time past its exposure) for a verdict while nothing is refused
+    (no base-camera registration came): then it is integrated."""
+    search_xy_m: float = 1.0
+    search_step_m: float = 0.25
+    """Global search: initial guesses on a grid of this pitch (m) within ±search_xy_m of the estimate, along the
+    base's x and y…"""
+    search_yaw_rad: float = math.radians(30.0)
+    search_yaw_step_rad: float = math.radians(10.0)
+    """…and in heading within ±search_yaw_rad (rad) at this pitch (rad): 9 × 9 × 7 guesses by default."""
+    search_coarse_m: float = 0.25
+    """A guess is scored, before any registration, by the share of the frame's points above the floor that lie
+    within this distance (m) of the reference's object surfaces (the floor fits every guess; it is not scored)."""
+    search_refined: int = 12
+    """The best-scored guesses registered by GICP (within `radius_max_m`) against the floor and the surfaces."""
+    search_inlier_m: float = 0.05
+    """A registered guess's score: the share of the frame's points above the floor within this distance (m) of an
+    object surface."""
+    search_min_score: float = 0.8
+    """The best registered guess is accepted only with at least this score… (the slips of
+    `tests/app/test_localization_slip.py` were found at 0.98–0.99; on E4's aisle a false alarm's best guess, 1.2 m
+    off, scored 0.61)"""
+    search_margin: float = 0.15
+    """…and only if it is unique: every registered guess ending at a distinct pose (farther than `search_distinct_m`
+    or `search_distinct_rad` from the best) scores at least this much less (shares; a uniform wall, where every
+    guess along it fits alike, is not unique). Before any of that: if the estimate itself (no offset) scores within
+    this of the best guess before registration, nothing jumped beyond `search_coarse_m` and the run goes on from
+    the estimate."""
+    search_distinct_m: float = 0.15
+    search_distinct_rad: float = math.radians(5.0)
+    """Two registered guesses are the same pose within these (m, rad)."""
+    search_tries: int = 5
+    """Searches (one a frame, each on a new frame once the last one's modelled time has passed) before the run
+    faults with "lost localization"."""
+    search_processing_s: float = 0.5
+    """Lockstep: a search's outcome (re-anchoring or a failed try) comes at its frame's stamp plus this modelled
+    time (a search is slower than one registration)."""
+    search_sigma_m: float = 0.05
+    search_sigma_rad: float = 0.02
+    """After re-anchoring, the covariance P restarts at these stds (m, rad): what one registration from a far guess
+    is good to."""
 
     def __post_init__(self) -> None:
         check_choices(self)

@@ -417,6 +417,9 @@ class LocalizationStatus(StrEnum):
     """Odometry alone: start-up, after Reset, or too little trusted surface in view so far."""
     LOCALIZED = "localized"
     """At least one registration against the map's trusted surfaces has been accepted."""
+    LOST = "lost"
+    """Registrations have disagreed with the estimate for `LocalizationParams.lost_after_s`: the base is held, the
+    map paused, and a global search runs (`core/localization/lost.py`)."""
 
 
 @dataclass(frozen=True)

@@ -58,6 +58,7 @@ from core.errors import StudioError
 from core.htmpc.safety import brake_along, braking_plan
 from core.localization import LocalizationHealth, Localizer, se2
 from core.localization.localizer import Correction
+from core.localization.lost import HOLD, INTEGRATE
 from core.mapping.frame_exposure import camera_latency, frames_at_exposure
 from core.mapping.reference_surface import occupied_surface, trusted_surface
 from core.mapping.world_map import WorldMap
@@ -238,6 +239,14 @@ class ClosedLoop:
         self.localization_worker: LocalizationWorker | None = None
         """Live: the thread the registrations run on (`app/runtime/localization_worker.py`); None: they run in
         the mapping stage itself (lockstep, deterministic)."""
+        self._held: deque[DepthFrame] = deque()
+        """Frames waiting for a localization verdict before the map integrates them (`_confirmed_frames`)."""
+        self.frames_dropped = 0
+        """Frames never integrated: localization found their pose in doubt (a slip; `core/localization/lost.py`)."""
+        self.held_for_search = False
+        """Localization is lost: the base is held (braked to rest, no control step plans) while it searches."""
+        self._search_paused = False
+        """The sequencer's subtask clock was stopped for a search (`_hold_for_search`)."""
         self._untrusted = False
         """Whether the last control step found the pose untrusted (a new episode is a problem)."""
         self.untrusted_steps = 0
@@ -525,17 +534,18 @@ class ClosedLoop:
             self.problems.record(ProblemKind.FAULT, self.state.t, reason)
         self.notify(f"fault: {reason}: braking to a stop within the limits; Reset to go on")
 
-    def _braking_plan(self, t: float) -> Plan:
+    def _braking_plan(self, t: float, why: str = "fault") -> Plan:
         """The commanded plan slowed to a stop along its path within a_max; without one (or when it cannot
         be followed), every joint ramps down from the last command within a_max."""
         lim, p = self.robot.limits, self.controller.params
+        reason = PlanReason.FAULT if why == "fault" else PlanReason.NONE
         plan = None
         if self.plan is not None and self.moving:
-            plan = brake_along(self.plan, t, lim, p.N, p.dt_s, PlanStatus.STOPPING, "fault: braking along the plan",
-                               PlanReason.FAULT)
+            plan = brake_along(self.plan, t, lim, p.N, p.dt_s, PlanStatus.STOPPING, f"{why}: braking along the plan",
+                               reason)
         if plan is None:
             last = RobotState(t, self.state.q, np.asarray(self.last_qdot, float))
-            plan = braking_plan(last, lim, p.N, p.dt_s, PlanStatus.STOPPING, "fault: braking", reason=PlanReason.FAULT)
+            plan = braking_plan(last, lim, p.N, p.dt_s, PlanStatus.STOPPING, f"{why}: braking", reason=reason)
         return plan
 
     def guarded(self, stage: str, fn: Callable[..., T], *args) -> T | None:
@@ -668,6 +678,7 @@ class ClosedLoop:
         evidence."""
         with self.lock:
             now = self.state.t
+        self._answer_lost(now)
         self.watch_health(now)
         localizer = self.localizer
         evidence = localizer.take_change_evidence() if localizer is not None else ()
@@ -676,6 +687,30 @@ class ClosedLoop:
                 note = getattr(world_map, "note_change_evidence", None)
                 if note is not None:
                     note(evidence)
+
+    def _answer_lost(self, t: float) -> None:
+        """The loop's answer to the localizer's lost state (`core/localization/lost.py`): lost, the base is held
+        (braking to rest within the limits, no control step plans) and the operator told; found again, control plans
+        from the re-anchored pose; given up, the run faults with "lost localization"."""
+        localizer = self.localizer
+        if localizer is None:
+            return
+        with localizer.lock:
+            lost, failed = localizer.lost.lost, localizer.lost.failed
+        if failed is not None:
+            self.fault(failed)
+            return
+        if lost and not self.held_for_search:
+            with self.command_lock, self.lock:
+                self.held_for_search = True
+                if self.fault_reason is None:
+                    self.plan = self._braking_plan(self.state.t, "localization lost: holding the base")
+                    self._pending_plans.clear()
+                self._untrusted = False  # a new untrusted episode, whatever came before: `watch_health` records it
+        elif not lost and self.held_for_search:
+            with self.lock:
+                self.held_for_search = False
+            self.notify("localization found again: re-anchored, the run goes on")
 
     def _reference_surface(self, t: float) -> ReferenceSurface:
         """The map's trusted surfaces, asked for at most every `reference_period_s` (the map's lock is held only
@@ -748,6 +783,11 @@ class ClosedLoop:
             frames, state = self._at_exposure(due)
             for frame in frames:  # the studio's clouds too, where the camera was
                 self.latest_frames[frame.camera] = frame
+        held = self.localizer is not None and self.config.localization.hold_frames
+        if held:  # registered first: frames wait for a verdict, and never go in at a pose that has jumped
+            frames, state = self._confirmed_frames(frames)
+            if not frames:
+                return
         t0 = time.perf_counter()
         with self.using_map() as world_map:
             world_map.integrate(Observation(state=state, frames=frames, odometry=None))
@@ -756,10 +796,36 @@ class ClosedLoop:
             self.timings_ms["mapping"] = (t1 - t0) * 1e3
         if self.stamps is not None:
             self._stamp_integration(world_map, frames, t0, t1)
-        self.localize(frames)
+        if not held:
+            self.localize(frames)
         p = self.controller.params
         if p.control_on_new_map:
             self._map_news |= {f.camera for f in frames if f.camera in p.control_trigger_cameras}
+
+    def _confirmed_frames(self, frames: tuple[DepthFrame, ...]) -> tuple[tuple[DepthFrame, ...], RobotState]:
+        """Localization first (`localize`), then the frames (these and those held before) whose pose a verdict has
+        confirmed, with the state at the newest one's exposure; frames not confirmed yet wait, and those at a pose
+        that may have jumped are dropped (`core/localization/lost.py`, `LocalizationParams.hold_frames`)."""
+        localizer = self.localizer
+        assert localizer is not None
+        self.localize(frames)
+        with self.lock:
+            now = self.state.t
+        self._held.extend(frames)
+        ready, waiting = [], deque()
+        with localizer.lock:
+            for frame in self._held:
+                fate = localizer.lost.fate(frame.t, now)
+                if fate == INTEGRATE:
+                    ready.append(frame)
+                elif fate == HOLD:
+                    waiting.append(frame)
+                else:
+                    self.frames_dropped += 1
+        self._held = waiting
+        with self.lock:
+            state = self.history.at(max(f.t for f in ready)) if ready else None
+        return tuple(ready), state if state is not None else self.state
 
     def control_triggered(self, t: float) -> bool:
         """Whether the map has taken frames that call for a control step now (`HTMPCParams.control_on_new_map`):
@@ -799,6 +865,8 @@ class ClosedLoop:
                 if self.run_state != RunState.RUNNING:
                     return
                 sequencer, controller = self.sequencer, self.controller
+            if self._hold_for_search(state.t, sequencer):
+                return
             with self.using_map() as world_map:
                 occupied = world_map.occupied_points()
                 t_edf = time.perf_counter()
@@ -837,6 +905,19 @@ class ClosedLoop:
             self.notify(sequencer.status_line())
         with self.lock:
             self.timings_ms["control"] = (time.perf_counter() - t0) * 1e3
+
+    def _hold_for_search(self, t: float, sequencer: Sequencer) -> bool:
+        """Whether this control step plans nothing because localization is lost (the subtask's clock stands still
+        meanwhile and runs on once found again; call under `step_lock`)."""
+        if self.held_for_search:
+            if not self._search_paused:
+                sequencer.pause(t)
+                self._search_paused = True
+            return True
+        if self._search_paused:
+            sequencer.resume(t)
+            self._search_paused = False
+        return False
 
     def refresh_objects_view(self) -> None:
         """The named objects as the sequencer will see them, now (a name given while paused shows at once; call

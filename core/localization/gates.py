@@ -22,6 +22,8 @@ class Verdict(StrEnum):
     CHI2 = "chi2"
     INCONSISTENT = "inconsistent"
     """Most objects in view disagree with the reference: the pose, not the objects, is in doubt."""
+    SEARCHED = "searched"
+    """Lost: the frame went to the global search (`lost.py`), not to a registration; neither counted nor tallied."""
 
 
 FAILURES = (Verdict.TOO_FEW_POINTS, Verdict.NOT_CONVERGED, Verdict.FEW_INLIERS)

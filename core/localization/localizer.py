@@ -23,7 +23,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from core.localization import degeneracy, gates, health, registration, scan, se2
+from core.localization import degeneracy, gates, health, lost, registration, scan, se2
 from core.localization.frozen_surfaces import FrozenSurfaces
 from core.localization.gates import Verdict
 from core.localization.health import LocalizationHealth
@@ -83,6 +83,8 @@ class Localizer:
         self.frozen = FrozenSurfaces(p.freeze_sigma_m, p.freeze_grow_m) if p.freeze_reference else None
         """The trusted surfaces where they were when first trusted (`frozen_surfaces.py`); None: the map's
         surfaces as they are now."""
+        self.lost = lost.LostWatch(p)
+        """Refusals in a row, the lost state, the frames' fate and the global search (`lost.py`)."""
 
     # --- cheap: every tick ----------------------------------------------------------------------------
 
@@ -107,6 +109,9 @@ class Localizer:
             while self._pending and self._pending[0][0] <= t + 1e-9:
                 self.filter.apply(self._pending.popleft()[1])
                 changed = True
+            if self.lost.resume_t is not None and self.lost.resume_t <= t + 1e-9:  # re-anchored: found again
+                self.lost.applied(t, self.lost.resume_delta)
+                self.status = LocalizationStatus.LOCALIZED
         return changed
 
     def estimate(self, t: float, odom_pose: np.ndarray) -> PoseEstimate:
@@ -126,6 +131,7 @@ class Localizer:
         recent = sum(1 for s in times if t - health.RATE_WINDOW_S < s <= t + 1e-9)
         reason = health.untrusted_reason(sigma, since, tally["accepted"], tally["rejected"], tally["degenerate"],
                                          tally["no_reference"], delta_safe_m, p)
+        reason = "; ".join(r for r in (self.lost.reason(), reason) if r) or None
         return LocalizationHealth(
             t=t, covariance=P, sigma_xy_m=sigma, sigma_yaw_rad=float(np.sqrt(max(P[2, 2], 0.0))),
             accepted=tally["accepted"], rejected=tally["rejected"], degenerate=tally["degenerate"],
@@ -153,6 +159,9 @@ class Localizer:
         p = self.params
         self._last_registration_t = frame.t
         self._excluded = {i: until for i, until in self._excluded.items() if until > frame.t}
+        if self.lost.lost:
+            return Correction(frame.t, Verdict.SEARCHED, **lost.search_frame(self, frame, np.asarray(base_pose, float),
+                                                                              surface))
         if self.frozen is not None:
             with self.lock:
                 sigma = self.filter.sigma_xy_m(p.max_range_m / 2)
@@ -267,6 +276,8 @@ class Localizer:
             self.tally[outcome] += 1
             if correction.verdict == Verdict.ACCEPTED:
                 self._accepted_t.append(correction.t)
+            if self.lost.observe(correction.verdict, correction.t, self.status != LocalizationStatus.ODOMETRY):
+                self.status = LocalizationStatus.LOST
         return correction
 
 

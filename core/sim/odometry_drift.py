@@ -9,7 +9,8 @@ driven, as wheel odometry's does, independent of how often it is updated (Browni
 
 The estimate and the truth differ by a rigid motion of the plane E (est = E ∘ true): `to_estimate`
 maps true world poses and vectors into the world the robot believes in, `to_true` maps its commands
-back. A teleport (`SimWorld.set_robot`) restarts the estimate at the true pose.
+back. A teleport (`SimWorld.set_robot`) restarts the estimate at the true pose. A slip (`slip`,
+`SensorParams.slip_at_s`) is a one-off error the estimate silently keeps.
 """
 
 from __future__ import annotations
@@ -65,6 +66,13 @@ class DriftingOdometry:
             self.distance_m += dist
             self.turned_rad += turn
         self._true = true_pose.copy()
+
+    def slip(self, d_body_m: tuple[float, float], d_yaw_rad: float) -> None:
+        """A one-off error (a wheel slip, a kidnap): the estimate jumps by d_body_m (x, y in the base frame as
+        the robot believes it, m) and d_yaw_rad about the base's centre, while the truth stays where it is. The
+        error is then carried on like drift (est = E ∘ true with the new E); only a reset clears it."""
+        self._est[:2] += _rot(self._est[2]) @ np.asarray(d_body_m, dtype=float)
+        self._est[2] = self._est[2] + d_yaw_rad
 
     @property
     def estimate(self) -> np.ndarray:

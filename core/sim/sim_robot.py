@@ -61,6 +61,7 @@ class SimRobot:
         self.odometry_estimate = DriftingOdometry(sensor.odometry_drift_m, sensor.odometry_drift_rad,
                                                   np.random.default_rng([self._seed, 1]))
         self._placements = -1
+        self._slipped = False
         self._sync_odometry()
 
     @property
@@ -132,6 +133,10 @@ class SimRobot:
             self.odometry_estimate.reset(q[:3])
         else:
             self.odometry_estimate.update(q[:3])
+        slip_at = self.sensor.slip_at_s
+        if not self._slipped and slip_at is not None and self.world.time + 1e-9 >= slip_at:
+            self._slipped = True  # once: the sensor model's one-off odometry error (`SensorParams.slip_at_s`)
+            self.odometry_estimate.slip(self.sensor.slip_m, self.sensor.slip_rad)
 
     def _render_due(self) -> None:
         t = self.world.time

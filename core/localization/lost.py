@@ -1,0 +1,221 @@
+"""Lost: registrations that keep disagreeing with the estimate (a slip, a kidnap), what becomes of the frames
+meanwhile, and the global search that ends it (docs/method.md, "State estimation", "Lost"; issue 28, item 3).
+
+- **Suspect.** A registration that had trusted surface in view and was refused by a gate (χ², inconsistent, few
+  inliers) while the localizer was localized starts a streak; an accepted one, or one with nothing to judge (no
+  reference, too few points), ends it. Degenerate and not converged ones neither start nor end it (a frame that fits
+  the floor alone says nothing about a jump, and GICP stopping at its iteration cap says little).
+- **Frames wait** (`LocalizationParams.hold_frames`): a frame is integrated only once a registration at or after its
+  exposure ended no streak (`confirmed_t`); while a streak runs frames wait (and are dropped after `hold_max_s`,
+  as are frames up to a refused one that no verdict confirmed); when the localizer gets lost, every
+  frame not confirmed is dropped, and so is every frame until the re-anchoring has been applied: the map never
+  integrates a frame at a pose that has jumped.
+- **Lost.** A streak of at least `lost_min_refusals` refusals over at least `lost_after_s`: the loop holds the base
+  (brakes to rest and plans nothing), and once the base is at rest each frame the localizer wants runs a global
+  search (`global_search.py`) instead of a registration, one at a time, its outcome due `search_processing_s` after
+  the frame. A unique answer
+  re-anchors T_world←odom (P restarts at `search_sigma_m` / `search_sigma_rad`) and, once applied, the run goes on.
+  First, though: if the estimate itself fits about as well as the best guess before registration
+  (`SearchResult.estimate_fits`: within `search_coarse_m` the refusals came from a drifted pose, not a jump), or if
+  the frame fits the reference nowhere in the window (no registered guess scores `search_min_score`: the reference
+  does not describe this view, and the frame cannot tell where the base is), the run goes on from the estimate.
+  Only ambiguity faults: after `search_tries` searches that found good fits at distinct poses, `failed` holds the
+  reason ("lost localization: …") and the loop faults.
+
+Thread use: every method is called under the localizer's lock.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections import deque
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+
+from core.localization import global_search, registration, scan, se2
+from core.localization.frozen_surfaces import FrozenSurfaces
+from core.localization.gates import Verdict
+from core.localization.global_search import SearchResult
+from core.localization.pose_filter import PoseFilter
+from core.localization.reference import Reference
+from core.params import LocalizationParams
+from core.types import DepthFrame, ReferenceSurface
+
+DISAGREEING = (Verdict.CHI2, Verdict.INCONSISTENT, Verdict.FEW_INLIERS)
+"""Verdicts that say the frame does not fit where the estimate puts it. Not converged says little (on E4's aisle a
+third of the registrations that were not accepted, in streaks of up to 3 while well localized), nor does degenerate:
+neither starts nor ends a streak."""
+UNJUDGED = (Verdict.NO_REFERENCE, Verdict.TOO_FEW_POINTS)
+"""Verdicts with nothing to judge by: no evidence of a jump, the streak ends."""
+REST_M = 0.005
+REST_RAD = 0.005
+"""The base is at rest for a search when it moved less than these (m, rad) between two frames offered (0.2 s apart at
+5 Hz: 2.5 cm/s)."""
+INTEGRATE, HOLD, DROP = "integrate", "hold", "drop"
+"""What becomes of a frame (`LostWatch.fate`)."""
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One lost episode: robot times (s) of the first refused frame, of getting lost, of the searches, and of the
+    re-anchoring (nan: not re-anchored), the re-anchoring (world-frame Δ, x, y, yaw), and the searches' results."""
+
+    refused_t: float
+    lost_t: float
+    searches: tuple[tuple[float, SearchResult], ...] = ()
+    anchored_t: float = math.nan
+    delta: np.ndarray | None = None
+
+
+class LostWatch:
+    """The streak of disagreeing registrations, the lost state, the frames' fate, and the searches' bookkeeping."""
+
+    def __init__(self, params: LocalizationParams) -> None:
+        self.params = params
+        self.streak: list[float] = []
+        """Frame times of the refused registrations of the current streak."""
+        self.confirmed_t = -math.inf
+        """Frames exposed at or before this robot time (s) are confirmed: a later registration found no jump."""
+        self.drop_until_t = -math.inf
+        """Frames exposed at or before this robot time (s) are dropped (they may be at a pose that has jumped)."""
+        self.doubted_t = -math.inf
+        """Frame time (s) of the latest refused registration: unconfirmed frames up to it are in doubt."""
+        self.lost = False
+        self.busy_until_t = -math.inf
+        """A search is under way (modelled, lockstep) until this robot time (s): no new one before."""
+        self.resume_t: float | None = None
+        """The re-anchoring applies at this robot time (s); lost until then."""
+        self.resume_delta = np.zeros(3)
+        """The re-anchoring: the world-frame correction Δ (x, y, yaw) applied to T_world←odom at `resume_t`."""
+        self.failed: str | None = None
+        """Why the localizer gave up ("lost localization: …"); the loop faults with it."""
+        self.episodes: list[Episode] = []
+        self._last_pose: np.ndarray | None = None
+
+    @property
+    def tries(self) -> int:
+        return len(self.episodes[-1].searches) if self.lost and self.episodes else 0
+
+    def observe(self, verdict: Verdict, t: float, localized: bool) -> bool:
+        """A registration's verdict for the frame exposed at t; whether the localizer got lost with it."""
+        if self.lost:
+            return False
+        p = self.params
+        if verdict in DISAGREEING and localized:
+            self.streak.append(t)
+            self.doubted_t = t
+            if len(self.streak) >= p.lost_min_refusals and t - self.streak[0] >= p.lost_after_s - 1e-9:
+                self.lost = True
+                self.episodes.append(Episode(self.streak[0], t))
+                return True
+        elif verdict == Verdict.ACCEPTED or verdict in UNJUDGED:
+            self.streak = []
+            self.confirmed_t = max(self.confirmed_t, t)
+        elif self.streak and t - self.streak[-1] > p.lost_after_s:
+            self.streak = []  # degenerate ever since: the refusals stopped (the frames held meanwhile are dropped)
+        return False
+
+    def wants_search(self, t: float, base_pose: np.ndarray) -> bool:
+        """Whether the frame exposed at t, the base at `base_pose` (by odometry) then, runs a search: lost, none under
+        way, none succeeded, not failed, and the base at rest (it moved less than `REST_M` / `REST_RAD` since the last
+        frame offered: a frame taken while braking is posed less well than one taken at rest)."""
+        last, self._last_pose = self._last_pose, np.asarray(base_pose, float).copy()
+        if not (self.lost and self.resume_t is None and self.failed is None and t >= self.busy_until_t - 1e-9):
+            return False
+        return last is not None and bool(np.hypot(*(base_pose[:2] - last[:2])) < REST_M
+                                          and abs(base_pose[2] - last[2]) < REST_RAD)
+
+    def searched(self, t: float, result: SearchResult) -> float:
+        """Record a search of the frame exposed at t; the robot time its outcome is due."""
+        p = self.params
+        due = t + p.search_processing_s
+        self.busy_until_t = due
+        episode = self.episodes[-1]
+        searches = (*episode.searches, (t, result))
+        self.episodes[-1] = Episode(episode.refused_t, episode.lost_t, searches)
+        if result.estimate_fits or not result.fits:  # no jump after all, or nothing to tell: go on from the estimate
+            self.resume_t = due
+            self.resume_delta = np.zeros(3)
+        elif result.unique:
+            self.resume_t = due
+        elif len(searches) >= p.search_tries:
+            self.failed = (f"lost localization: no unique pose in {len(searches)} global searches "
+                           f"(±{p.search_xy_m:g} m, ±{math.degrees(p.search_yaw_rad):g}°; last: {result.reason})")
+        return due
+
+    def applied(self, t: float, delta: np.ndarray) -> None:
+        """The re-anchoring (Δ) was applied at robot time t: found again; frames after it are mapped again once
+        confirmed."""
+        episode = self.episodes[-1]
+        self.episodes[-1] = Episode(episode.refused_t, episode.lost_t, episode.searches, t, np.asarray(delta, float))
+        self.lost = False
+        self.resume_t = None
+        self.streak = []
+        self.drop_until_t = t
+        self.confirmed_t = max(self.confirmed_t, t)
+
+    def fate(self, frame_t: float, now: float) -> str:
+        """What becomes of a frame exposed at frame_t, at robot time now: integrate, hold (wait for a verdict) or
+        drop."""
+        if frame_t <= self.drop_until_t + 1e-9 or (self.lost and frame_t > self.confirmed_t):
+            return DROP
+        if frame_t <= self.confirmed_t + 1e-9:
+            return INTEGRATE
+        if now - frame_t > self.params.hold_max_s:  # no verdict came: kept unless a refusal put it in doubt
+            return DROP if self.streak or frame_t <= self.doubted_t else INTEGRATE
+        return HOLD
+
+    def reason(self) -> str | None:
+        """The operator's line while lost (None otherwise)."""
+        if self.failed is not None:
+            return self.failed
+        if not self.lost:
+            return None
+        if self.resume_t is not None:
+            return "lost: found again, re-anchoring"
+        return f"lost: searching (base held, mapping paused; {self.tries} of {self.params.search_tries} searches)"
+
+
+class Searcher(Protocol):
+    """What the search needs of the localizer (`Localizer`; a protocol, so that this module does not import it)."""
+
+    params: LocalizationParams
+    lock: threading.Lock
+    lost: LostWatch
+    frozen: FrozenSurfaces | None
+    filter: PoseFilter
+    _pending: deque[tuple[float, np.ndarray]]
+
+    def _prepared(self, surface: ReferenceSurface | None, centre_xy: np.ndarray
+                  ) -> tuple[Reference, registration.Target, float]: ...
+
+
+def search_frame(loc: Searcher, frame: DepthFrame, base_pose: np.ndarray, surface: ReferenceSurface | None
+                 ) -> dict[str, Any]:
+    """While lost (`Localizer.correct`): a global search of `frame` (posed by the current estimate, the base at
+    `base_pose` then) against the floor and the trusted surfaces (the frozen ones when frozen), when one is due; a
+    unique answer re-anchors T_world←odom at the frame's stamp + `search_processing_s` and restarts P. Returns the
+    fields of the frame's `Correction` (verdict SEARCHED; `pose` and `apply_t` set when it re-anchors)."""
+    p = loc.params
+    with loc.lock:
+        due = loc.lost.wants_search(frame.t, base_pose)
+    if not due:
+        return {}
+    if loc.frozen is not None:
+        surface = loc.frozen.surface
+    ref, target, ref_ms = loc._prepared(surface, base_pose[:2])
+    source, _ = registration.thin(scan.camera_points(frame, p.stride_px, p.max_range_m), p.source_voxel_m)
+    result = global_search.search(ref, target, source, frame.T_world_camera, base_pose, p)
+    with loc.lock:
+        apply_t = loc.lost.searched(frame.t, result)
+        if result.estimate_fits or not result.unique or not result.fits or result.best is None:
+            return {"registration_ms": result.ms, "reference_ms": ref_ms}
+        delta = se2.compose(result.best.pose, se2.inverse(base_pose))
+        loc.lost.resume_delta = delta
+        loc.filter.P = np.diag([p.search_sigma_m**2, p.search_sigma_m**2, p.search_sigma_rad**2])
+        loc._pending.append((apply_t, delta))
+    return {"delta": delta, "dof": 3, "registration_ms": result.ms, "reference_ms": ref_ms, "apply_t": apply_t,
+            "pose": result.best.pose}
