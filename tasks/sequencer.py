@@ -145,9 +145,27 @@ class Sequencer:
         horizon = HTMPCParams()
         self.n_nodes = horizon.N if n_nodes is None else n_nodes
         self.dt = horizon.dt_s if dt is None else dt
+        self.margin_growth_m = 0.0
+        """What the controller's delta_safe is grown by (the pose's uncertainty, `set_margin_growth`): the planner
+        grows its obstacles by the same, so its paths keep the clearance the controller now keeps."""
         ready = robot.ee_pose(np.concatenate([[0.0, 0.0, 0.0], READY_Q[3:]]))
         self.ee_offset_base = ready[:3, 3]
         self.reset()
+
+    def set_margin_growth(self, growth_m: float) -> None:
+        """Grow the planner's obstacles (`inflation_m`, `inflation_min_m`) by `growth_m` from the next plan on, as
+        the controller's delta_safe is grown; a change of half a grid cell or more plans again at once."""
+        if not (math.isfinite(growth_m) and growth_m >= 0.0):
+            raise ValueError(f"the margin growth must be a finite distance >= 0 m, got {growth_m}")
+        if abs(growth_m - self.margin_growth_m) >= self.params.grid_cell_m / 2:
+            self._plan_t = -math.inf
+            self._grid_sig = None
+        self.margin_growth_m = float(growth_m)
+
+    def _inflations_m(self) -> tuple[float, float]:
+        """The preferred and the least obstacle growth for A* (m), both grown by `margin_growth_m`."""
+        p, g = self.params, self.margin_growth_m
+        return p.inflation_m + g, min(p.inflation_min_m, p.inflation_m) + g
 
     def reset(self) -> None:
         """Back to the first subtask, nothing done."""
@@ -451,8 +469,8 @@ class Sequencer:
         the re-plan period passed."""
         sig, p = None, self.params
         if occupied is not None:  # the cheap grid notices a change; the plan is made on the fine one
-            sig = OccupancyGrid.from_points(occupied, p.plan_bounds_m, p.grid_cell_m, p.inflation_m, p.obstacle_z_m,
-                                            subcells=1).signature()
+            sig = OccupancyGrid.from_points(occupied, p.plan_bounds_m, p.grid_cell_m, self._inflations_m()[0],
+                                            p.obstacle_z_m, subcells=1).signature()
         due = t - self._plan_t >= self.params.replan_period_s
         if self.path is not None and sig == self._grid_sig and not due:
             return self.path
@@ -495,7 +513,8 @@ class Sequencer:
         p = self.params
         best: tuple[np.ndarray, list[str], int] | None = None
         error: NoPathError | None = None
-        for inflation in dict.fromkeys((p.inflation_m, min(p.inflation_min_m, p.inflation_m))):
+        preferred, least = self._inflations_m()
+        for inflation in dict.fromkeys((preferred, least)):
             grid = OccupancyGrid.from_points(occupied, p.plan_bounds_m, p.grid_cell_m, inflation, p.obstacle_z_m)
             notes: list[str] = []
             try:
@@ -505,7 +524,7 @@ class Sequencer:
                 continue
             skipped = sum("skipped" in n for n in notes)
             if best is None or skipped < best[2]:
-                if inflation < p.inflation_m:
+                if inflation < preferred:
                     notes.append(f"a narrow passage: planned with {inflation:.2f} m of clearance")
                 best = (path, notes, skipped)
             if skipped == 0:

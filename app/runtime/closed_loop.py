@@ -946,7 +946,9 @@ class ClosedLoop:
         (call under `step_lock`)."""
         health = self.watch_health(t)
         if self.localizer is not None:  # no growth while the robot localizes itself (no health of ours then)
-            controller.set_delta_safe(self.config.htmpc.delta_safe_m + (health.margin_growth_m if health else 0.0))
+            growth = health.margin_growth_m if health else 0.0
+            controller.set_delta_safe(self.config.htmpc.delta_safe_m + growth)
+            self.sequencer.set_margin_growth(growth)  # the planner's paths keep the clearance the controller keeps
 
     def watch_health(self, t: float) -> LocalizationHealth | None:
         """The pose's health at robot time t; a new untrusted episode is recorded as a problem (once) and told to

@@ -1,3 +1,4 @@
+
 """The health the operator sees (issue 28, item 2) in the lockstep closed loop (real MuJoCo, object map, HTMPC,
 localization on): the snapshot carries the pose's covariance, the registrations' verdicts and the age of the last
 correction; corrections starved (every registration refused) make the pose untrusted, a LOCALIZATION problem in
@@ -7,6 +8,7 @@ uncertainty, measured at the robot's true clearance against the same run with `g
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -91,8 +93,10 @@ def test_corrections_starved_past_untrusted_after_s_is_a_problem_with_its_reason
 def test_an_untrusted_pose_grows_delta_safe_and_the_robot_keeps_it_from_the_box(grow):
     """The filter told its odometry drifts 0.2 m/√m and no correction is ever accepted: after 0.5 m σ_xy ≈ 0.14 m,
     3σ past delta_safe / 2. With `grow_margin` the controller keeps delta_safe + clip(3σ − delta_safe/2, 0, 0.3 m)
-    (0.55 m once capped) at every step, and the robot's true clearance to the box settles there, short of a goal
-    that plain delta_safe allows (measured: 0.550 m, held at x = 0.67 m); without it, delta_safe stays 0.25 m and
+    (0.55 m once capped) at every step, and the planner grows its obstacles as much, so the goal (within the grown
+    margin of the box) is moved back to where the margin holds and the operator told (measured: margin 0.540 m, goal
+    moved 0.25 m, clearance 0.733 m at rest; before the planner followed the margin, the controller alone held the
+    base 0.550 m from the box, short of the goal, until the timeout); without it, delta_safe stays 0.25 m and
     the robot drives on to the goal (measured: 0.446 m, at x = 0.76 m, the sequence finished)."""
     localization = replace(STARVED, drift_m_per_sqrt_m=0.2, grow_margin=grow)
     rt = _runtime(localization, BOX_AHEAD, UP_TO_THE_BOX)
@@ -111,10 +115,13 @@ def test_an_untrusted_pose_grows_delta_safe_and_the_robot_keeps_it_from_the_box(
     if grow:
         # the health the step read is the one published: delta_safe kept = configured + growth (to the step's time)
         np.testing.assert_allclose(kept[1:], delta + growth[1:], atol=0.02)
-        assert kept[-1] == pytest.approx(delta + localization.margin_growth_max_m)
-        assert clearance.min() > delta + localization.margin_growth_max_m - 0.02, clearance.min()
-        assert "delta_safe 0.25 → 0.55 m" in rt.status_line()
-        assert not rt.sequencer.finished
+        # grown near its cap (σ grows only while the base drives, and the planner, grown as much, stops it short)
+        assert delta + localization.margin_growth_max_m - 0.02 < kept[-1] <= delta + localization.margin_growth_max_m
+        assert clearance.min() > kept[-1] - 0.02, (clearance.min(), kept[-1])
+        assert f"delta_safe 0.25 → {kept[-1]:.2f} m" in rt.status_line(), rt.status_line()
+        # the goal, within the grown margin of the box, was moved back to where the margin holds, and said so
+        shift = rt.sequencer.progress[0].goal_shift
+        assert shift is not None and math.dist(shift.original, shift.driven) > 0.2, shift
     else:
         assert np.all(kept == delta) and np.all(growth == 0.0)
         assert clearance.min() < delta + localization.margin_growth_max_m - 0.05, clearance.min()

@@ -301,6 +301,28 @@ def test_a_route_that_first_leads_away_from_the_goal_is_progress_not_blocked(rob
     assert s.progress[0].position_error_m > 3.0 + 4.0  # farther from the goal than at the start
 
 
+def test_the_planner_grows_its_obstacles_by_the_controllers_margin_growth(robot):
+    """A 1.8 m gap: planned with the preferred 0.8 m of clearance. The controller's delta_safe grown by 0.1 m (an
+    uncertain pose): the planner's obstacles grow as much and it plans again at once, 0.9 m closes the gap and
+    the least (0.75 m) passes, a narrow passage; grown by 0.3 m, neither passes: no path where the controller could
+    not keep its margin."""
+    ys = np.arange(0.9, 8.0, 0.05)
+    side = np.c_[np.full(len(ys), 2.0), ys, np.full(len(ys), 0.3)]
+    walls = np.concatenate([side, side * [1, -1, 1]])
+    seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=4.0, y=0.0), timeout_s=60.0)])
+    s = Sequencer(robot, seq)
+    s.update(state_at(0.0, 0.0), walls, 0.0)
+    assert not s.progress[0].no_path and "narrow passage" not in s.progress[0].message
+    s.set_margin_growth(0.1)  # 0.9 m: only the least (0.75 m) passes, and the operator is told
+    s.update(state_at(0.0, 0.0), walls, 0.1)
+    assert not s.progress[0].no_path and "narrow passage: planned with 0.75 m" in s.progress[0].message
+    s.set_margin_growth(0.3)
+    s.update(state_at(0.0, 0.0), walls, 0.2)
+    assert s.progress[0].no_path
+    with pytest.raises(ValueError, match="margin growth"):
+        s.set_margin_growth(float("nan"))
+
+
 def test_a_passage_too_narrow_for_the_preferred_clearance_is_planned_with_the_least_the_base_needs(robot):
     """A 1.5 m gap between two walls: no path with 0.8 m of clearance (0 m left), one with 0.65 m (0.2 m left);
     the operator is told it is a narrow passage. A gap of 1.2 m is too narrow even for that: no path."""
