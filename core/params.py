@@ -595,6 +595,11 @@ class LocalizationParams:
     (χ², inconsistent, few inliers) one after another for at least this long (s of robot time, first to last refused
     frame; no accepted one and none with nothing to register against between; degenerate and not converged ones
     neither break nor extend the streak)…"""
+    lost_jump_m: float = 0.25
+    lost_jump_rad: float = 0.17
+    """A χ² refusal counts towards lost only if its innovation along the constrained directions is at least this
+    (m in x-y, or rad, ~10°): a smaller one says the filter was too sure of itself (with a self-built reference its σ
+    runs below the drift), and P grows by the innovation instead. A slip of the issue's size (0.5 m, 30°) is larger."""
     lost_min_refusals: int = 3
     """…and at least this many of them make the localizer LOST: the base stops, mapping pauses and a global search
     runs. From the first such refusal frames wait (are not integrated) until a registration passes again."""

@@ -55,6 +55,9 @@ class Correction:
     apply_t: float = math.nan
     pose: np.ndarray | None = None
     """The base's world pose at the frame's exposure after the correction (accepted ones only)."""
+    jump: bool = True
+    """A χ² refusal: whether its innovation (along the constrained directions) is as large as a jump
+    (`lost_jump_m`, `lost_jump_rad`); a smaller one says the filter was too sure, not that the base slipped."""
 
 
 class Localizer:
@@ -219,7 +222,8 @@ class Localizer:
             update = self.filter.update(base_pose, measured, dirs, p.sigma_xy_m, p.sigma_yaw_rad,
                                         5.0 * p.degenerate_information)
             if not gates.chi2_passes(update.nis, update.dof, p):
-                return replace(base, verdict=Verdict.CHI2, dof=update.dof, nis=update.nis)
+                jump = self._admit(_constrained_innovation(measured, base_pose, dirs))
+                return replace(base, verdict=Verdict.CHI2, dof=update.dof, nis=update.nis, jump=jump)
             self.filter.P = update.P
             apply_t = frame.t + p.processing_s
             self._pending.append((apply_t, update.delta))
@@ -228,6 +232,16 @@ class Localizer:
             self.counts[DEGENERATE] += 1
         return replace(base, delta=update.delta, dof=update.dof, nis=update.nis, apply_t=apply_t,
                        pose=se2.compose(update.delta, base_pose))
+
+    def _admit(self, innovation: np.ndarray) -> bool:
+        """Whether a refused registration's innovation (x, y, yaw) is as large as a jump (`lost_jump_m`,
+        `lost_jump_rad`); if not, the filter was too sure of itself: P grows by it, so the next frame may pass
+        (call under `lock`)."""
+        p = self.params
+        jump = bool(np.hypot(innovation[0], innovation[1]) >= p.lost_jump_m or abs(innovation[2]) >= p.lost_jump_rad)
+        if not jump:
+            self.filter.P = self.filter.P + np.diag(np.asarray(innovation, float) ** 2)
+        return jump
 
     def _disagreeing(self, ref: Reference, target: registration.Target, source, T: np.ndarray
                      ) -> tuple[int, ...] | None:
@@ -276,9 +290,18 @@ class Localizer:
             self.tally[outcome] += 1
             if correction.verdict == Verdict.ACCEPTED:
                 self._accepted_t.append(correction.t)
-            if self.lost.observe(correction.verdict, correction.t, self.status != LocalizationStatus.ODOMETRY):
+            if self.lost.observe(correction.verdict, correction.t, self.status != LocalizationStatus.ODOMETRY,
+                                 correction.jump):
                 self.status = LocalizationStatus.LOST
         return correction
+
+
+def _constrained_innovation(measured: np.ndarray, predicted: np.ndarray, dirs: degeneracy.Directions
+                            ) -> np.ndarray:
+    """measured ⊖ predicted (x, y, yaw) along the registration's constrained directions only."""
+    nu = np.array([measured[0] - predicted[0], measured[1] - predicted[1], se2.wrap(measured[2] - predicted[2])])
+    U = dirs.vectors[:, dirs.constrained]
+    return np.linalg.inv(dirs.scale) @ U @ U.T @ dirs.scale @ nu
 
 
 def _rms_lever(result: registration.Result, points_camera: np.ndarray, base_xy: np.ndarray) -> float:

@@ -1,8 +1,10 @@
 """Lost: registrations that keep disagreeing with the estimate (a slip, a kidnap), what becomes of the frames
 meanwhile, and the global search that ends it (docs/method.md, "State estimation", "Lost"; issue 28, item 3).
 
-- **Suspect.** A registration that had trusted surface in view and was refused by a gate (χ², inconsistent, few
-  inliers) while the localizer was localized starts a streak; an accepted one, or one with nothing to judge (no
+- **Suspect.** A registration that had trusted surface in view and was refused by a gate (χ² with an innovation
+  as large as a jump, inconsistent, few inliers) while the localizer was localized starts a streak (a χ² refusal
+  smaller than `lost_jump_m` / `lost_jump_rad` says the filter was too sure of itself: P grows by the innovation
+  and the frame is only in doubt); an accepted one, or one with nothing to judge (no
   reference, too few points), ends it. Degenerate and not converged ones neither start nor end it (a frame that fits
   the floor alone says nothing about a jump, and GICP stopping at its iteration cap says little).
 - **Frames wait** (`LocalizationParams.hold_frames`): a frame is integrated only once a registration at or after its
@@ -99,11 +101,15 @@ class LostWatch:
     def tries(self) -> int:
         return len(self.episodes[-1].searches) if self.lost and self.episodes else 0
 
-    def observe(self, verdict: Verdict, t: float, localized: bool) -> bool:
-        """A registration's verdict for the frame exposed at t; whether the localizer got lost with it."""
+    def observe(self, verdict: Verdict, t: float, localized: bool, jump: bool = True) -> bool:
+        """A registration's verdict for the frame exposed at t (`jump`: a χ² refusal's innovation is as large as a
+        jump); whether the localizer got lost with it."""
         if self.lost:
             return False
         p = self.params
+        if verdict == Verdict.CHI2 and not jump:  # the filter too sure, not a slip: its frames are in doubt only
+            self.doubted_t = t
+            return False
         if verdict in DISAGREEING and localized:
             self.streak.append(t)
             self.doubted_t = t

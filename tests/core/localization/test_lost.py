@@ -118,3 +118,24 @@ def test_a_view_the_reference_does_not_describe_is_no_jump_and_the_estimate_goes
     assert loc.status == LocalizationStatus.LOCALIZED and not loc.lost.lost
     np.testing.assert_allclose(loc.world_from_odom, before)  # not re-anchored
     assert c.pose is None
+
+
+def test_a_small_chi2_refusal_says_the_filter_was_too_sure_and_is_no_jump():
+    """Drift 8 cm off among the boxes with the filter sure to 2 cm: the registration is refused by χ², but its
+    innovation is no jump (under `lost_jump_m`). P grows by the innovation, so the registrations are accepted again,
+    and the localizer never gets lost; the frames up to the refusal are in doubt meanwhile."""
+    loc = _localizer()
+    loc.filter.P = np.diag([0.02**2, 0.02**2, math.radians(0.2) ** 2])  # sure of itself, yet 8 cm off
+    loc.status = LocalizationStatus.LOCALIZED
+    drift = np.array([0.08, 0.0, 0.0])
+    frame, base = _drifted_frame(BOXES, drift, t=1.0)
+    before = loc.filter.P.copy()
+    c = loc.correct(frame, base, surface_of(BOXES))
+    assert c.verdict == Verdict.CHI2 and not c.jump, c
+    assert np.trace(loc.filter.P) > np.trace(before) + 0.05**2
+    assert loc.lost.fate(1.0, 1.0) == HOLD and loc.lost.fate(1.0, 1.0 + loc.params.hold_max_s + 0.1) == DROP
+    frame, base = _drifted_frame(BOXES, drift, t=1.0 + PERIOD_S)
+    c = loc.correct(frame, base, surface_of(BOXES))
+    assert c.verdict == Verdict.ACCEPTED and c.pose is not None, c  # the next frame passes, and corrects the drift
+    assert np.hypot(*c.pose[:2]) < 0.02, c.pose
+    assert loc.status != LocalizationStatus.LOST and not loc.lost.episodes
