@@ -25,14 +25,25 @@ import os
 import threading
 import time
 from collections import deque
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 import numpy as np
 
 from core.types import DepthFrame
 
-if TYPE_CHECKING:
-    from app.runtime.closed_loop import ClosedLoop
+
+class RegisteringLoop(Protocol):
+    """What the worker needs of the closed loop (`ClosedLoop`; a protocol, so that the two modules do not import each
+    other)."""
+
+    fault_reason: str | None
+
+    @property
+    def localizing(self) -> bool: ...
+
+    def register(self, frame: DepthFrame, base: np.ndarray) -> Any: ...
+
+    def after_registrations(self) -> None: ...
 
 HEALTH_PERIOD_S = 0.25
 """Longest wait for a frame (wall s): the pose's health is watched at least this often."""
@@ -42,7 +53,7 @@ class LocalizationWorker:
     """The registrations of one `ClosedLoop`, live: frames in (`submit`, from the mapping stage), one registration
     per `tick` (the supervised "localization" loop of `app/runtime/live_loops.py`), the health watched every tick."""
 
-    def __init__(self, loop: ClosedLoop, health_period_s: float = HEALTH_PERIOD_S) -> None:
+    def __init__(self, loop: RegisteringLoop, health_period_s: float = HEALTH_PERIOD_S) -> None:
         self.loop = loop
         self.health_period_s = health_period_s
         self._wanted: deque[tuple[DepthFrame, np.ndarray]] = deque()
