@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from app.bridge.server import BridgeServer
+from app.runtime.snapshot import RunState
 from tests.app.bridge.conftest import wait_until
 from tests.app.faults import RaiseOnCall
 
@@ -43,7 +44,13 @@ def test_a_fault_brakes_a_bridged_robot_within_its_limits(bridge: BridgeServer, 
     start_driver()
     bridge_runtime.start_live()
     bridge_runtime.start()
-    assert wait_until(lambda: bridge.robot.observe().state.v[0] > 0.3, timeout_s=60), bridge_runtime.status_line()
+
+    def moving() -> bool:
+        if bridge_runtime.run_state == RunState.PAUSED:  # a state gone stale under load paused it: Start resumes
+            bridge_runtime.start()
+        return bridge.robot.observe().state.v[0] > 0.3
+
+    assert wait_until(moving, timeout_s=60), bridge_runtime.status_line()
     loop = bridge_runtime.closed_loop
     loop.controller = RaiseOnCall(loop.controller, "solve", RuntimeError("solver broke"))
     assert wait_until(lambda: bridge_runtime.fault is not None, timeout_s=10)
