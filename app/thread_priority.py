@@ -15,6 +15,7 @@ normal priority, as before, and the log says so once.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import threading
@@ -35,6 +36,15 @@ def set_thread_niceness(niceness: int | None) -> bool:
     if niceness is None:
         return True
     return _renice(threading.get_native_id(), niceness)
+
+
+def lower_thread_niceness(niceness: int) -> None:
+    """Renice the calling thread to `niceness` (at most 19) if that is lower priority than it has: a thread that
+    must not take time from the loops that keep it (lowering one's own priority needs no privilege)."""
+    tid = threading.get_native_id()
+    with contextlib.suppress(OSError):
+        if os.getpriority(os.PRIO_PROCESS, tid) < niceness:
+            os.setpriority(os.PRIO_PROCESS, tid, min(niceness, 19))
 
 
 def boost_threads(niceness: int | None) -> bool:

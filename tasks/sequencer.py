@@ -158,8 +158,7 @@ class Sequencer:
         if not (math.isfinite(growth_m) and growth_m >= 0.0):
             raise ValueError(f"the margin growth must be a finite distance >= 0 m, got {growth_m}")
         if abs(growth_m - self.margin_growth_m) >= self.params.grid_cell_m / 2:
-            self._plan_t = -math.inf
-            self._grid_sig = None
+            self._plan_t = -math.inf  # re-plan the base path now
         self.margin_growth_m = float(growth_m)
 
     def _inflations_m(self) -> tuple[float, float]:

@@ -877,7 +877,7 @@ class ClosedLoop:
             refs = sequencer.update(state, planner_points(occupied, edf), state.t, objects)
             self._tell_anchor_moves(sequencer, objects, state.t)
             notice = self._unknown_notice(state, refs, edf)
-            self._answer_health(state.t, controller)
+            self._answer_health(state.t, controller, sequencer)
             plan, solve_ms = None, math.nan
             t_solve = t_solved = time.perf_counter()
             if refs is not None:
@@ -940,7 +940,7 @@ class ClosedLoop:
         self._unknown_slowed = notice is not None
         return notice
 
-    def _answer_health(self, t: float, controller: HTMPC) -> None:
+    def _answer_health(self, t: float, controller: HTMPC, sequencer: Sequencer) -> None:
         """The controller's answer to the pose's health at this control step: delta_safe grown by its uncertainty
         (`LocalizationParams.grow_margin`; zero growth while σ is small); an untrusted pose is also watched here
         (call under `step_lock`)."""
@@ -948,7 +948,7 @@ class ClosedLoop:
         if self.localizer is not None:  # no growth while the robot localizes itself (no health of ours then)
             growth = health.margin_growth_m if health else 0.0
             controller.set_delta_safe(self.config.htmpc.delta_safe_m + growth)
-            self.sequencer.set_margin_growth(growth)  # the planner's paths keep the clearance the controller keeps
+            sequencer.set_margin_growth(growth)  # the planner's paths keep the clearance the controller keeps
 
     def watch_health(self, t: float) -> LocalizationHealth | None:
         """The pose's health at robot time t; a new untrusted episode is recorded as a problem (once) and told to

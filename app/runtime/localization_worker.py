@@ -20,8 +20,6 @@ it costs the control and I/O loops, with localization on and off.
 
 from __future__ import annotations
 
-import contextlib
-import os
 import threading
 import time
 from collections import deque
@@ -29,6 +27,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from app.thread_priority import lower_thread_niceness
 from core.types import DepthFrame
 
 
@@ -92,9 +91,8 @@ class LocalizationWorker:
         """Wait up to `health_period_s` for a frame; register it if one came; watch the pose's health."""
         if not self._reniced:
             self._reniced = True
-            if self.niceness is not None:  # lowering one's own priority needs no privilege
-                with contextlib.suppress(OSError):
-                    os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), min(self.niceness, 19))
+            if self.niceness is not None:
+                lower_thread_niceness(self.niceness)
         with self._ready:
             if not self._wanted:
                 self._ready.wait(self.health_period_s)

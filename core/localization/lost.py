@@ -134,8 +134,9 @@ class LostWatch:
         return last is not None and bool(np.hypot(*(base_pose[:2] - last[:2])) < REST_M
                                           and abs(base_pose[2] - last[2]) < REST_RAD)
 
-    def searched(self, t: float, result: SearchResult) -> float:
-        """Record a search of the frame exposed at t; the robot time its outcome is due."""
+    def searched(self, t: float, result: SearchResult) -> tuple[float, bool]:
+        """Record a search of the frame exposed at t; the robot time its outcome is due, and whether it re-anchors
+        at the best candidate (a unique answer where the estimate itself did not fit)."""
         p = self.params
         due = t + p.search_processing_s
         self.busy_until_t = due
@@ -145,12 +146,13 @@ class LostWatch:
         if result.estimate_fits or not result.fits:  # no jump after all, or nothing to tell: go on from the estimate
             self.resume_t = due
             self.resume_delta = np.zeros(3)
-        elif result.unique:
+        elif result.unique and result.best is not None:
             self.resume_t = due
+            return due, True
         elif len(searches) >= p.search_tries:
             self.failed = (f"lost localization: no unique pose in {len(searches)} global searches "
                            f"(±{p.search_xy_m:g} m, ±{math.degrees(p.search_yaw_rad):g}°; last: {result.reason})")
-        return due
+        return due, False
 
     def applied(self, t: float, delta: np.ndarray) -> None:
         """The re-anchoring (Δ) was applied at robot time t: found again; frames after it are mapped again once
@@ -216,8 +218,8 @@ def search_frame(loc: Searcher, frame: DepthFrame, base_pose: np.ndarray, surfac
     source, _ = registration.thin(scan.camera_points(frame, p.stride_px, p.max_range_m), p.source_voxel_m)
     result = global_search.search(ref, target, source, frame.T_world_camera, base_pose, p)
     with loc.lock:
-        apply_t = loc.lost.searched(frame.t, result)
-        if result.estimate_fits or not result.unique or not result.fits or result.best is None:
+        apply_t, reanchor = loc.lost.searched(frame.t, result)
+        if not reanchor or result.best is None:  # (best is set whenever it re-anchors)
             return {"registration_ms": result.ms, "reference_ms": ref_ms}
         delta = se2.compose(result.best.pose, se2.inverse(base_pose))
         loc.lost.resume_delta = delta
