@@ -193,6 +193,8 @@ class HTMPCParams:
     Fewer slacks make each QP stage smaller (HPIPM's cost grows with the cube of its size)."""
     Q_base: tuple[float, float, float] = (1.0, 1.0, 0.5)
     Q_ee: tuple[float, float, float, float, float, float] = (1.0, 1.0, 1.0, 0.2, 0.2, 0.2)
+    Q_posture: tuple[float, float, float, float, float, float] = (0.5, 0.5, 0.5, 0.5, 0.5, 0.5)
+    """Weights of the arm posture task (per rad of the six arm joints), what the arm holds while the base drives."""
     Q_edot: float = 0.01
     Q_x: float = 1e-3
     Q_u: float = 1e-2
@@ -448,6 +450,8 @@ class SequencerParams:
     """Speed at which base references advance along the planned path."""
     lookahead_m: float = 1.5
     """In navigation the hand camera looks at the path point this far ahead."""
+    lookahead_turn_max_deg: float = 60.0
+    """The most the arm turns at the shoulder (from its ready pose) to look ahead along the path."""
     plan_bounds_m: tuple[float, float, float, float] = (-8.0, 8.0, -8.0, 8.0)
     """The A* grid's extent in the world: x_min, x_max, y_min, y_max."""
     grid_cell_m: float = 0.1

@@ -274,14 +274,16 @@ class EEReference:
 class References:
     """What the active subtask asks of the HTMPC: the tasks' references and their priority order.
 
-    `order` lists task names ('base', 'ee') from highest priority; a name whose reference is None is
-    skipped. `switched` is True on the first step after a subtask change (more SQP iterations).
+    `order` lists task names ('base', 'ee', 'posture') from highest priority; a name whose reference is None is
+    skipped. `switched` is True on the first step after a subtask change (more SQP iterations). `posture`: the
+    six arm joints' reference (K×6 or 1×6, rad), what the arm holds while the base drives.
     """
 
     order: tuple[str, ...]
     base: BaseReference | None = None
     ee: EEReference | None = None
     switched: bool = False
+    posture: np.ndarray | None = None
 
 
 class PlanStatus(StrEnum):

@@ -1,8 +1,11 @@
 """Build HTMPC references (`core.types.References`) for the active subtask over the horizon.
 
 Base subtasks: the base reference advances along the planned path at `nominal_speed_mps`, heading
-along the path, turning to the goal yaw near the end; the EE reference keeps the hand at its ready
-offset on the reference base and aims the hand camera at the path point `lookahead_m` ahead.
+along the path, turning to the goal yaw near the end; the arm holds its ready pose (joints, `ReadyHand`), turned
+at the shoulder so the hand camera faces the path point `lookahead_m` ahead: the 'ee' of the subtask's order
+becomes 'posture'. (A hand pose held in the world on the reference base made the arm reach for where the base
+should be, and a hand pose in any frame let the arm switch configurations: over laps it flipped its elbow and
+wrist and wound its joints into their limits.)
 EE subtasks: the EE reference is the (constant) target pose; the (lower-priority) base reference is a
 stance from which the target is within comfortable reach: on the line from the target to where the
 base was when the subtask began, at the ready pose's reach, facing the target. Holding the start pose
@@ -15,6 +18,7 @@ import numpy as np
 
 from core.params import SequencerParams
 from core.types import BaseReference, EEReference, References
+from tasks.ready_hand import ReadyHand
 
 
 def path_arclength(path: np.ndarray) -> np.ndarray:
@@ -63,25 +67,13 @@ def unwrap_near(angles: np.ndarray, reference: float) -> np.ndarray:
     return out
 
 
-def look_at_rotation(eye: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """EE rotation whose x axis (the hand camera's optical axis) points from eye to target, z up."""
-    x = target - eye
-    x = x / max(np.linalg.norm(x), 1e-9)
-    up = np.array([0.0, 0.0, 1.0])
-    z = up - x * (x @ up)
-    if np.linalg.norm(z) < 1e-6:
-        z = np.array([1.0, 0.0, 0.0])
-    z = z / np.linalg.norm(z)
-    y = np.cross(z, x)
-    return np.stack([x, y, z], axis=1)
-
-
 def navigation_references(path: np.ndarray, s_now: float, yaw_now: float, goal_yaw: float | None,
-                          ee_offset_base: np.ndarray, params: SequencerParams, n_nodes: int, dt: float,
+                          ready: ReadyHand, params: SequencerParams, n_nodes: int, dt: float,
                           order: tuple[str, ...], switched: bool,
                           ee_hold: tuple[np.ndarray, np.ndarray | None] | None = None) -> References:
-    """References for a base subtask along `path` from arc length `s_now`; `ee_hold` (position, rotation or
-    None, in the base frame) holds the hand there instead of the ready pose looking ahead."""
+    """References for a base subtask along `path` from arc length `s_now`; the arm holds its ready pose turned at
+    the shoulder toward the path point `lookahead_m` ahead (`ReadyHand`); `ee_hold` (position, rotation or None,
+    in the base frame) holds the hand there instead."""
     s = path_arclength(path)
     at = s_now + params.nominal_speed_mps * dt * np.arange(n_nodes + 1)
     xy = point_at(path, s, at)
@@ -99,15 +91,15 @@ def navigation_references(path: np.ndarray, s_now: float, yaw_now: float, goal_y
         return References(order=order, base=base, ee=EEReference(np.asarray(position, float)[None], rot, "base"),
                           switched=switched)
     c, sn = np.cos(yaw), np.sin(yaw)
-    ee_pos = np.stack([xy[:, 0] + c * ee_offset_base[0] - sn * ee_offset_base[1],
-                       xy[:, 1] + sn * ee_offset_base[0] + c * ee_offset_base[1],
-                       np.full_like(yaw, ee_offset_base[2])], axis=-1)
     look = point_at(path, s, at + params.lookahead_m)
     heading = np.stack([c, sn], axis=-1)
     look = np.where((s[-1] - at < params.lookahead_m)[:, None], xy + params.lookahead_m * heading, look)
-    look3 = np.column_stack([look, np.full(len(look), 0.3)])
-    ee_rot = np.stack([look_at_rotation(p, t) for p, t in zip(ee_pos, look3, strict=True)])
-    return References(order=order, base=base, ee=EEReference(ee_pos, ee_rot), switched=switched)
+    d = look - xy  # the look-ahead point in each node's reference base frame
+    look_b = np.column_stack([c * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + c * d[:, 1]])
+    limit = np.radians(params.lookahead_turn_max_deg)
+    posture = ready.joints(np.clip(ready.bearing_to(look_b), -limit, limit))
+    return References(order=tuple("posture" if n == "ee" else n for n in order), base=base, switched=switched,
+                      posture=posture)
 
 
 def manipulation_stance(target: np.ndarray, base_start: np.ndarray, reach_m: float) -> np.ndarray:

@@ -16,11 +16,12 @@ from enum import StrEnum
 import numpy as np
 
 from core.params import HTMPCParams, SequencerParams
-from core.robot.model import READY_Q, RobotModel
+from core.robot.model import RobotModel
 from core.types import References, RobotState
 from tasks.anchors import MapObjects, anchor_of, describe, is_anchored, resolve_subtask
 from tasks.occupancy import OccupancyGrid
 from tasks.path_planner import NoPathError, plan_path
+from tasks.ready_hand import ReadyHand
 from tasks.references import (
     manipulation_references,
     manipulation_stance,
@@ -148,8 +149,9 @@ class Sequencer:
         self.margin_growth_m = 0.0
         """What the controller's delta_safe is grown by (the pose's uncertainty, `set_margin_growth`): the planner
         grows its obstacles by the same, so its paths keep the clearance the controller now keeps."""
-        ready = robot.ee_pose(np.concatenate([[0.0, 0.0, 0.0], READY_Q[3:]]))
-        self.ee_offset_base = ready[:3, 3]
+        self.ready = ReadyHand.of(robot)
+        """The hand's ready pose in the base frame: what the arm holds while the base drives."""
+        self.ee_offset_base = self.ready.position
         self.reset()
 
     def set_margin_growth(self, growth_m: float) -> None:
@@ -386,9 +388,8 @@ class Sequencer:
             log.info("subtask %d: %s", self.index + 1, message)
         self._set_progress(Outcome.ACTIVE, elapsed, 0.0, nan, nan, message)
         self.progress[self.index] = replace(self.progress[self.index], anchored_goal=None)
-        refs = navigation_references(state.q[None, :2].copy(), 0.0, float(state.q[2]), None, self.ee_offset_base,
-                                     self.params, self.n_nodes, self.dt, ("base", "ee"), self._switched,
-                                     ee_hold=(self.ee_offset_base, None))
+        refs = navigation_references(state.q[None, :2].copy(), 0.0, float(state.q[2]), None, self.ready,
+                                     self.params, self.n_nodes, self.dt, ("base", "ee"), self._switched)
         self._switched = False
         return refs
 
@@ -459,7 +460,7 @@ class Sequencer:
         self._pass_waypoints(sub, state.q[:2], path, s)
         hold = None if sub.ee is None else (np.array(sub.ee.position), sub.ee.rotation())
         return navigation_references(path, self._s_progress, float(state.q[2]), sub.goal().yaw_rad,
-                                     self.ee_offset_base, self.params, self.n_nodes, self.dt, order, self._switched,
+                                     self.ready, self.params, self.n_nodes, self.dt, order, self._switched,
                                      ee_hold=hold)
 
     def _maybe_replan(self, sub: BaseSubtask, state: RobotState, occupied: np.ndarray | None,

@@ -49,7 +49,14 @@ from core.htmpc.level_problem import (
 )
 from core.htmpc.ocp_qp import NQ, QPLayout, StructuredQP
 from core.htmpc.safety import brake_along, braking_plan, plan_is_safe
-from core.htmpc.task_costs import BaseTaskCost, EEBaseFrameTaskCost, EETaskCost, Linearisation, TaskCost
+from core.htmpc.task_costs import (
+    BaseTaskCost,
+    EEBaseFrameTaskCost,
+    EETaskCost,
+    Linearisation,
+    PostureTaskCost,
+    TaskCost,
+)
 from core.params import HTMPCParams
 from core.robot.model import RobotModel
 from core.types import Plan, PlanReason, PlanStatus, References, RobotState
@@ -131,7 +138,7 @@ class HTMPC:
         self.robot = robot
         self.params = params or HTMPCParams()
         p = self.params
-        self.tasks = {"base": BaseTaskCost(p.Q_base), "ee": EETaskCost(p.Q_ee)}
+        self.tasks = {"base": BaseTaskCost(p.Q_base), "ee": EETaskCost(p.Q_ee), "posture": PostureTaskCost(p.Q_posture)}
         self.ee_base_task = EEBaseFrameTaskCost(p.Q_ee)
         """The EE task when the reference is in the base frame (`EEReference.frame == 'base'`)."""
         self.kinematics = HorizonKinematicsEvaluator(robot, p.N + 1)

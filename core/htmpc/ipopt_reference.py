@@ -77,7 +77,11 @@ class IpoptReference:
 
     # --- symbolic pieces --------------------------------------------------------------------------
 
-    def _errors(self, name: str, q: ca.SX, ref_p: ca.SX, ref_R: ca.SX | None) -> ca.SX:
+    def _errors(self, name: str, q: ca.SX, ref_p: ca.SX, ref_R: ca.SX | None, in_base: bool = False) -> ca.SX:
+        """The task's error at q; `in_base`: the EE pose in the base frame (`EEBaseFrameTaskCost`)."""
+        if name == "posture":  # here ref_R's first six rows hold the arm joints' reference
+            assert ref_R is not None
+            return ref_R[:6] - q[3:]
         if name == "base":
             e = ref_p[:2] - q[:2]
             if ref_R is not None:  # here ref_R holds the yaw reference
@@ -87,12 +91,18 @@ class IpoptReference:
         R, p = self.sym.frame("ee")
         Rq = ca.substitute(R, self.sym.q, q)
         pq = ca.substitute(p, self.sym.q, q)
+        if in_base:
+            c, s = ca.cos(q[2]), ca.sin(q[2])
+            RpsiT = ca.vertcat(ca.horzcat(c, s, 0), ca.horzcat(-s, c, 0), ca.horzcat(0, 0, 1))
+            pq = RpsiT @ (pq - ca.vertcat(q[0], q[1], 0))
+            Rq = RpsiT @ Rq
         e = ref_p - pq
         if ref_R is not None:
             e = ca.vertcat(e, _log3_sx(Rq.T @ ref_R))
         return e
 
-    def _build(self, levels: tuple[str, ...], has_rot: dict[str, bool], level: int, with_edf: bool):
+    def _build(self, levels: tuple[str, ...], has_rot: dict[str, bool], level: int, with_edf: bool,
+               ee_in_base: bool = False):
         p, N, M = self.params, self.params.N, len(self.radii)
         R = self.boxes.n_rows
         ns = int(self.groups.max()) + 1
@@ -113,15 +123,15 @@ class IpoptReference:
                               q_sym[1] + s * local[3 * r] + c * local[3 * r + 1], local[3 * r + 2]) for r in range(R)]
         P_fn = ca.Function("P", [q_sym, local], [ca.vertcat(ca.vec(self.sym.sphere_centres()), *box_pts)])
         dt = p.dt_s
-        W = {"base": np.array(p.Q_base), "ee": np.array(p.Q_ee)}
+        W = {"base": np.array(p.Q_base), "ee": np.array(p.Q_ee), "posture": np.array(p.Q_posture)}
 
         def err(name, k):
             ref_p, ref_R = refs[name]
-            if name == "base":
-                rot = ref_R[0, k] if has_rot[name] else None
+            if name in ("base", "posture"):
+                rot = ref_R[0, k] if name == "base" and has_rot[name] else ref_R[:, k]
                 return self._errors(name, X[:9, k], ref_p[:, k], rot)
             rot = ca.reshape(ref_R[:, k], 3, 3) if has_rot[name] else None
-            return self._errors(name, X[:9, k], ref_p[:, k], rot)
+            return self._errors(name, X[:9, k], ref_p[:, k], rot, ee_in_base)
 
         cost, task = 0, 0
         g, lbg, ubg = [], [], []
@@ -206,11 +216,11 @@ class IpoptReference:
         """
         compared: list[float] = []
         p, N = self.params, self.params.N
-        if refs.ee is not None and refs.ee.frame != "world":
-            raise NotImplementedError("the IPOPT reference tracks world-frame EE targets only")
-        order = tuple(n for n in refs.order if (refs.base if n == "base" else refs.ee) is not None)
+        ee_in_base = refs.ee is not None and refs.ee.frame == "base"
+        given = {"base": refs.base, "ee": refs.ee, "posture": refs.posture}
+        order = tuple(n for n in refs.order if given[n] is not None)
         has_rot = {"base": refs.base is not None and refs.base.yaw is not None,
-                   "ee": refs.ee is not None and refs.ee.rotation is not None}
+                   "ee": refs.ee is not None and refs.ee.rotation is not None, "posture": True}
         ns = int(self.groups.max()) + 1
         kin = self.kin(q_guess)
         M = len(self.radii)
@@ -231,6 +241,11 @@ class IpoptReference:
                 if refs.base.yaw is not None:
                     yaw[:, 0] = np.broadcast_to(np.asarray(refs.base.yaw), (N + 1,))
                 ref_par.append(np.concatenate([pos.ravel(), yaw.ravel()]))
+            elif name == "posture":
+                assert refs.posture is not None
+                joints = np.zeros((N + 1, 9))
+                joints[:, :6] = np.broadcast_to(np.asarray(refs.posture, float).reshape(-1, 6), (N + 1, 6))
+                ref_par.append(np.concatenate([np.zeros((N + 1) * 3), joints.ravel()]))
             else:
                 assert refs.ee is not None
                 pos = np.broadcast_to(refs.ee.position, (N + 1, 3))
@@ -248,9 +263,9 @@ class IpoptReference:
         z = z0
         success = True
         for level in range(levels):
-            key = (order, tuple(sorted(has_rot.items())), level, edf is not None, p.hierarchy)
+            key = (order, tuple(sorted(has_rot.items())), level, edf is not None, p.hierarchy, ee_in_base)
             if key not in self._cache:
-                self._cache[key] = self._build(order, has_rot, level, edf is not None)
+                self._cache[key] = self._build(order, has_rot, level, edf is not None, ee_in_base)
             solver, errs, lbg, ubg, cost_fn, rows_fn = self._cache[key]
             par = np.concatenate([x0, *ref_par, dbar.ravel(), grad.ravel(), Pbar.ravel(), local.ravel(),
                                   *[np.concatenate([lo.ravel(order="F"), hi.ravel(order="F")]) for lo, hi in estars]])

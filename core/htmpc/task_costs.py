@@ -47,7 +47,7 @@ class TaskCost:
     def __init__(self, weights: tuple[float, ...]) -> None:
         self.weights = np.asarray(weights, float)
 
-    def reference(self, refs: References) -> BaseReference | EEReference | None:
+    def reference(self, refs: References) -> BaseReference | EEReference | np.ndarray | None:
         """This task's reference in `refs` (None: the subtask does not use this task)."""
         raise NotImplementedError
 
@@ -120,6 +120,28 @@ class EETaskCost(TaskCost):
             e = self.compute_error(q, kin, ref)
         Jr = -left_jacobian_inverse(e[:, 3:]) @ np.swapaxes(kin.R, -1, -2) @ kin.Jw
         return np.concatenate([Jp, Jr], axis=1)
+
+
+class PostureTaskCost(TaskCost):
+    """Arm posture task: e = q_d − q over the six arm joints. In joint space the posture is one configuration, so
+    holding it keeps the arm on its branch, where a hand pose alone is reached by up to eight (UR10) and a
+    Gauss-Newton step near a singularity can switch between them."""
+
+    name = "posture"
+    needs_kinematics = False
+    linear_in_q = True
+
+    def reference(self, refs: References) -> np.ndarray | None:
+        return refs.posture
+
+    def compute_error(self, q: np.ndarray, kin: HorizonKinematics | None, ref: np.ndarray) -> np.ndarray:
+        return _broadcast(np.asarray(ref, float).reshape(-1, 6), q.shape[0]) - q[:, 3:]
+
+    def compute_jacobian(self, q: np.ndarray, kin: HorizonKinematics | None, ref: np.ndarray,
+                         e: np.ndarray | None = None) -> np.ndarray:
+        J = np.zeros((q.shape[0], 6, 9))
+        J[:, np.arange(6), np.arange(3, 9)] = -1.0
+        return J
 
 
 def _yaw_rotations(yaw: np.ndarray) -> np.ndarray:

@@ -106,9 +106,9 @@ def test_the_sequencer_follows_the_object_and_waits_when_it_is_gone(robot):
     assert s.index == 1  # reached: the EE subtask is next
     gone = MapObjects(1.1, (), {"box_3": "box_3 not in the map"})
     refs = s.update(state_at(1.3, 0.42), np.zeros((0, 3)), 1.1, gone)
-    assert refs is not None and refs.order == ("base", "ee")  # hold the base, tuck the hand
+    assert refs is not None and refs.order == ("base", "posture")  # hold the base, the arm at its ready pose
     np.testing.assert_allclose(refs.base.xy, [[1.3, 0.42]] * len(refs.base.xy))
-    assert refs.ee.frame == "base" and np.allclose(refs.ee.position[0], s.ee_offset_base)
+    assert refs.ee is None and refs.posture is not None and np.allclose(refs.posture[0], READY_Q[3:])
     assert s.progress[1].message == "box_3 not in the map: waiting"
     assert s.update(state_at(1.3, 0.42), np.zeros((0, 3)), 7.0, gone) is None
     assert s.progress[1].outcome == Outcome.FAILED

@@ -23,16 +23,15 @@ def test_base_subtask_references_follow_the_path(robot):
     seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=4.0, y=0.0, yaw_deg=90.0))])
     s = Sequencer(robot, seq)
     refs = s.update(state_at(0.0, 0.0), np.zeros((0, 3)), 0.0)
-    assert refs.order == ("base", "ee") and refs.switched
-    assert refs.base.xy.shape == (11, 2) and refs.ee.position.shape == (11, 3) and refs.ee.rotation.shape == (11, 3, 3)
+    assert refs.order == ("base", "posture") and refs.switched
+    assert refs.base.xy.shape == (11, 2) and refs.ee is None and refs.posture.shape == (11, 6)
     steps = np.linalg.norm(np.diff(refs.base.xy, axis=0), axis=1)
     np.testing.assert_allclose(steps, 0.6 * 0.3, atol=1e-6)  # nominal speed × dt
     np.testing.assert_allclose(refs.base.yaw, 0.0, atol=1e-6)  # heading along the path
-    # hand camera looks ahead and down at the path
-    axis = refs.ee.rotation[0][:, 0]
+    # the arm holds its ready pose: the hand camera looks ahead and down at the path
+    np.testing.assert_allclose(refs.posture, np.tile(READY_Q[3:], (11, 1)), atol=1e-9)
+    axis = robot.ee_pose(np.concatenate([[0.0, 0.0, 0.0], refs.posture[0]]))[:3, 0]
     assert axis[0] > 0.5 and axis[2] < 0.0
-    for R in refs.ee.rotation:
-        np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-9)
     assert not s.update(state_at(0.1, 0.0), np.zeros((0, 3)), 0.1).switched
     near = s.update(state_at(3.6, 0.0), np.zeros((0, 3)), 0.2)
     assert near.base.yaw[-1] == pytest.approx(math.pi / 2)  # goal yaw near the end

@@ -20,7 +20,14 @@ CASES = {
     "ee within reach": References(order=("ee",), ee=EEReference(np.array([[1.0, 0.3, 0.8]]), TURNED[None])),
     "ee out of reach": References(order=("ee",), ee=EEReference(np.array([[1.6, 0.3, 0.8]]), TURNED[None])),
     "base pose": References(order=("base",), base=BaseReference(np.array([[-0.4, 0.2]]), np.array([0.3]))),
+    "arm posture": References(order=("posture",), posture=np.array([[0.5, -1.3, 1.9, 0.1, 1.2, 2.9]])),
+    "ee in the base frame": References(order=("ee",), ee=EEReference(np.array([[0.7, 0.4, 0.9]]), TURNED[None],
+                                                                     "base")),
 }
+
+
+STARTS = {"ee in the base frame": (0.5, -0.3, 0.7)}
+"""The base away from the origin, so the base frame is not the world frame."""
 
 
 @pytest.fixture(scope="module")
@@ -32,7 +39,7 @@ def reference(robot):
 def test_converged_sqp_reaches_ipopts_optimum(robot, reference, case):
     refs = CASES[case]
     controller = lockstep(HTMPC(robot, PARAMS))
-    state = ready_state()
+    state = ready_state(base=STARTS.get(case, (0.0, 0.0, 0.0)))
     warm = controller.warm_start(state)
     controller.solve(state, refs, None)
     result = reference.solve(state, refs, None, warm.q, warm.v, warm.a, compare=controller.last_step.level_solutions)

@@ -4,7 +4,7 @@ import numpy as np
 import pinocchio as pin
 
 from core.htmpc.horizon_kinematics import HorizonKinematicsEvaluator
-from core.htmpc.task_costs import BaseTaskCost, EEBaseFrameTaskCost, EETaskCost
+from core.htmpc.task_costs import BaseTaskCost, EEBaseFrameTaskCost, EETaskCost, PostureTaskCost
 from core.types import BaseReference, EEReference, References
 
 
@@ -100,3 +100,15 @@ def test_every_task_takes_the_same_arguments_and_picks_its_own_reference(robot):
         np.testing.assert_array_equal(lin.J, J)
         assert J.shape == (3, e.shape[1], 9) and lin.weights.shape == (e.shape[1],)
     assert BaseTaskCost((1.0,) * 3).compute_error(q, None, base).shape == (3, 3)  # the base task needs no FK
+
+
+def test_posture_error_and_jacobian_are_the_arm_joints():
+    task = PostureTaskCost((0.5,) * 6)
+    q = np.array([[1.0, 2.0, 0.3, 0.1, -1.5, 2.0, -0.1, 1.5, 3.0], [0.0, 0.0, 0.0, 0.2, -1.6, 2.2, -0.2, 1.6, 3.1]])
+    ref = np.array([[0.0, -1.6, 2.2, -0.2, 1.5708, 3.1416]])
+    np.testing.assert_allclose(task.compute_error(q, None, ref), ref - q[:, 3:])  # the base plays no part
+    J = task.compute_jacobian(q, None, ref)
+    np.testing.assert_allclose(J[:, :, :3], 0.0)
+    np.testing.assert_allclose(J[0, :, 3:], -np.eye(6))
+    assert task.reference(References(order=("posture",), posture=ref)) is ref
+
