@@ -11,8 +11,9 @@
 
     python -m bench.soak [--quick] [--api-only] [--cycles N]
 
-`--api-only` runs part 2 alone; `--cycles` sets its count; the JSON keeps the RSS after every cycle
-(`extra.api_rss_mb`) so a figure can be checked against the series it was fitted on.
+`--api-only` runs part 2 alone, `--lockstep-only` part 1 alone; `--localization` runs part 1 with the pose
+localized (off by default, as the product's defaults); `--cycles` sets its count; the JSON keeps the RSS after
+every cycle (`extra.api_rss_mb`) so a figure can be checked against the series it was fitted on.
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ from app.runtime import Runtime, RuntimeConfig
 from app.runtime.native_memory import release_free_memory
 from app.runtime.snapshot import RunState
 from bench.report import bench_args, write_result
+from core.params import LocalizationParams
 from core.sim.world import SceneEditError
 from tasks.sequence_file import EXAMPLES_DIR, load_sequence
 
@@ -185,10 +187,12 @@ def _end_lap(rt: Runtime, tally: Tally) -> None:
     tally.laps += 1
 
 
-def lockstep_soak(sim_minutes: float, seed: int = 0) -> Tally:
-    """The looping sequence with boxes moving, in simulated time; collisions, crashes, faults, memory."""
+def lockstep_soak(sim_minutes: float, seed: int = 0, localization: bool = False) -> Tally:
+    """The looping sequence with boxes moving, in simulated time; collisions, crashes, faults, memory. With
+    `localization` the pose is the localizer's (`LocalizationParams.enabled`), else the drifting odometry."""
     tally = Tally()
-    rt = Runtime(RuntimeConfig(map_kind="object"), sequence=load_sequence(SEQUENCE))
+    config = RuntimeConfig(map_kind="object", localization=LocalizationParams(enabled=localization))
+    rt = Runtime(config, sequence=load_sequence(SEQUENCE))
     mover = BoxMover(tally, _goals(rt), seed)
     total = sim_minutes * 60.0
     done = 0.0
@@ -328,6 +332,9 @@ def api_cycles(n: int, pause_s: float = 0.3) -> ApiTally:
 
 def _options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--api-only", action="store_true", help="only the operator API's cycles (part 2)")
+    parser.add_argument("--lockstep-only", action="store_true", help="only the lockstep soak (part 1)")
+    parser.add_argument("--localization", action="store_true",
+                        help="part 1 with localization on (default: the odometry alone, as the defaults run)")
     parser.add_argument("--cycles", type=int, default=None,
                         help=f"API cycles (default {STEADY_FROM_CYCLE + 100}; 20 with --quick)")
 
@@ -340,7 +347,7 @@ def main(argv: list[str] | None = None) -> None:
     figures: dict[str, float] = {}
     soak = None
     if not args.api_only:
-        soak = lockstep_soak(sim_minutes)
+        soak = lockstep_soak(sim_minutes, localization=args.localization)
         figures |= {
             "collisions": float(soak.collisions),
             "crashes": float(soak.crashes),
@@ -349,15 +356,17 @@ def main(argv: list[str] | None = None) -> None:
             "laps": float(soak.laps),
             "box_moves": float(soak.box_moves),
             "sim_minutes": sim_minutes,
+            "localization": float(args.localization),
             "lockstep_rtf": sim_minutes * 60.0 / (time.monotonic() - wall0),
             "rss_growth_mb_per_min": growth_mb_per_min(soak.rss),
             "rss_end_mb": soak.rss[-1][1],
         }
-    cycles = api_cycles(n_cycles)
+    cycles = None if args.lockstep_only else api_cycles(n_cycles)
     lockstep_faults = soak.faults if soak is not None else []
+    api_faults = cycles.faults if cycles is not None else []
     figures |= {
-        "faults": float(len(lockstep_faults) + len(cycles.faults)),
-        **cycles.figures(),
+        "faults": float(len(lockstep_faults) + len(api_faults)),
+        **(cycles.figures() if cycles is not None else {}),
         "cpu_s": time.process_time() - cpu0,
         "wall_s": time.monotonic() - wall0,
         "load_average_1min_start": load0[0],
@@ -370,12 +379,13 @@ def main(argv: list[str] | None = None) -> None:
                "subtasks_failed": "== 0", "api_failures": "== 0", "api_faults": "== 0",
                "api_rss_growth_mb_per_cycle": "<= 0.1", "api_threads_leaked": "== 0",
                "api_child_processes_leaked": "== 0", "api_gl_contexts_leaked": "== 0", "api_child_processes": "== 0"}
-    print(cycles.growth_note())
+    api = ({"api_failures": cycles.failures[:20], "api_rss_growth_note": cycles.growth_note(),
+            "api_rss_mb": [round(r, 2) for _, r in cycles.rss]} if cycles is not None else {})
+    if cycles is not None:
+        print(cycles.growth_note())
     write_result("soak", figures, units, {k: v for k, v in targets.items() if k in figures}, quick=args.quick,
-                 extra={"faults": lockstep_faults + cycles.faults,
-                        "subtask_failures": soak.failures[:50] if soak is not None else [],
-                        "api_failures": cycles.failures[:20], "api_rss_growth_note": cycles.growth_note(),
-                        "api_rss_mb": [round(r, 2) for _, r in cycles.rss]})
+                 extra={"faults": lockstep_faults + api_faults,
+                        "subtask_failures": soak.failures[:50] if soak is not None else [], **api})
 
 
 if __name__ == "__main__":
