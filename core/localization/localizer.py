@@ -27,7 +27,8 @@ from core.localization import degeneracy, gates, health, lost, registration, sca
 from core.localization.frozen_surfaces import FrozenSurfaces
 from core.localization.gates import Verdict
 from core.localization.health import LocalizationHealth
-from core.localization.pose_filter import PoseFilter
+from core.localization.loop_closure import LoopClosure
+from core.localization.pose_filter import PoseFilter, measurement_information
 from core.localization.reference import FLOOR_ID, Reference, build
 from core.params import LocalizationParams
 from core.types import DepthFrame, LocalizationStatus, PoseEstimate, ReferenceSurface
@@ -55,6 +56,8 @@ class Correction:
     apply_t: float = math.nan
     pose: np.ndarray | None = None
     """The base's world pose at the frame's exposure after the correction (accepted ones only)."""
+    loop: bool = False
+    """Whether the frame was registered against an earlier visit's keyframes (a loop closure), not the map."""
     jump: bool = True
     """A χ² refusal: whether its innovation (along the constrained directions) is as large as a jump
     (`lost_jump_m`, `lost_jump_rad`); a smaller one says the filter was too sure, not that the base slipped."""
@@ -88,6 +91,11 @@ class Localizer:
         surfaces as they are now."""
         self.lost = lost.LostWatch(p)
         """Refusals in a row, the lost state, the frames' fate and the global search (`lost.py`)."""
+        self.loops = LoopClosure(p) if p.loop_closure else None
+        """The pose graph of keyframes and its loop closures (`loop_closure.py`); None: the filter alone."""
+        self._T_log: deque[tuple[float, np.ndarray]] = deque([(-math.inf, np.zeros(3))], maxlen=10_000)
+        """(robot time, T_world←odom from then on): the odometry pose of a frame's base from its world pose."""
+        self._measured: tuple[np.ndarray, np.ndarray] | None = None
 
     # --- cheap: every tick ----------------------------------------------------------------------------
 
@@ -115,6 +123,10 @@ class Localizer:
             if self.lost.resume_t is not None and self.lost.resume_t <= t + 1e-9:  # re-anchored: found again
                 self.lost.applied(t, self.lost.resume_delta)
                 self.status = LocalizationStatus.LOCALIZED
+                if self.loops is not None:
+                    self.loops.break_chain()  # the odometry jumped: no odometry factor across it
+            if changed:
+                self._T_log.append((t, self.filter.T_world_odom.copy()))
         return changed
 
     def estimate(self, t: float, odom_pose: np.ndarray) -> PoseEstimate:
@@ -169,6 +181,10 @@ class Localizer:
             with self.lock:
                 sigma = self.filter.sigma_xy_m(p.max_range_m / 2)
             surface = self.frozen.update(surface, sigma, self._excluded)
+        if self.loops is not None:
+            closed = self._close(frame, np.asarray(base_pose, float), surface)
+            if closed is not None:
+                return self._record(closed)
         ref, target, ref_ms = self._prepared(surface, np.asarray(base_pose[:2], float))
         trusted = ref.object_ids != FLOOR_ID
         if np.sum(scan.in_view(ref.points[trusted], frame, p.max_range_m)) < p.min_trusted_points:
@@ -201,7 +217,62 @@ class Localizer:
             result = registration.register(target, source, frame.T_world_camera, radius, p.max_iterations)
             ms += result.ms
         pts = np.asarray(source.points())[:, :3]
-        return self._record(self._judge(frame, np.asarray(base_pose, float), result, pts, ms, ref_ms, disagreeing))
+        self._measured = None
+        correction = self._judge(frame, np.asarray(base_pose, float), result, pts, ms, ref_ms, disagreeing)
+        if self.loops is not None:
+            pose = correction.pose if correction.pose is not None else np.asarray(base_pose, float)
+            with self.lock:
+                P = self.filter.P.copy()
+            odom = self._odom_at(frame.t, base_pose)
+            self.loops.after_map_registration(frame, np.asarray(base_pose, float), pose, odom, P, pts, ref, target,
+                                              self._measured)
+        return self._record(correction)
+
+    def _odom_at(self, t: float, base_pose: np.ndarray) -> np.ndarray:
+        """The odometry pose of the base whose world pose at robot time t was `base_pose` (T_world←odom then)."""
+        return se2.compose(se2.inverse(self._world_from_odom_at(t)), np.asarray(base_pose, float))
+
+    def _world_from_odom_at(self, t: float) -> np.ndarray:
+        for since, T in reversed(self._T_log):
+            if since <= t + 1e-9:
+                return T
+        return self._T_log[0][1]
+
+    def _close(self, frame: DepthFrame, base_pose: np.ndarray, surface: ReferenceSurface | None) -> Correction | None:
+        """A loop closure (`loop_closure.py`) of the frame onto an earlier visit's keyframes, when one is near and it
+        passes its gates: the correction, due at frame.t + processing_s, T_world←odom following the optimised graph and
+        P its covariance. None: no earlier visit here, or refused (the map's surfaces are then the reference)."""
+        p = self.params
+        assert self.loops is not None
+        source, n = registration.thin(scan.camera_points(frame, p.stride_px, p.max_range_m), p.source_voxel_m)
+        if n < p.min_source_points:
+            return None
+        live = set() if surface is None else set(np.unique(np.asarray(surface.object_ids, int)).tolist())
+        live -= set(self._excluded)
+        with self.lock:
+            P = self.filter.P.copy()
+        T = self._world_from_odom_at(frame.t)
+        odom = se2.compose(se2.inverse(T), base_pose)
+        c = self.loops.close(frame, base_pose, odom, float(T[2]), P, source, live, self._disagreeing)
+        if c is None:
+            return None
+        if c.disagreeing:
+            for i in c.disagreeing:
+                self._excluded[i] = frame.t + p.exclusion_s
+            with self.lock:
+                self._evidence.extend(c.disagreeing)
+        if c.verdict != Verdict.ACCEPTED or c.delta is None or c.P is None:
+            self.counts[f"loop_{c.verdict.value}"] += 1
+            return None
+        self.counts["loop_accepted"] += 1
+        with self.lock:
+            self.filter.P = c.P
+            apply_t = frame.t + p.processing_s
+            self._pending.append((apply_t, c.delta))
+            self.status = LocalizationStatus.LOCALIZED
+        return Correction(frame.t, Verdict.ACCEPTED, delta=c.delta, dof=c.dof, nis=c.nis, inlier_share=c.inlier_share,
+                          registration_ms=c.registration_ms, reference_ms=c.reference_ms, disagreeing=c.disagreeing,
+                          apply_t=apply_t, pose=c.pose, loop=True)
 
     def _judge(self, frame: DepthFrame, base_pose: np.ndarray, result: registration.Result, source_points: np.ndarray,
                ms: float, ref_ms: float, disagreeing: tuple[int, ...]) -> Correction:
@@ -225,6 +296,10 @@ class Localizer:
                 jump = self._admit(_constrained_innovation(measured, base_pose, dirs))
                 return replace(base, verdict=Verdict.CHI2, dof=update.dof, nis=update.nis, jump=jump)
             self.filter.P = update.P
+            if self.loops is not None:
+                Hm, R = measurement_information(dirs, p.graph_map_sigma_m, p.graph_map_sigma_rad,
+                                                5.0 * p.degenerate_information)
+                self._measured = (measured, Hm.T @ np.linalg.solve(R, Hm))
             apply_t = frame.t + p.processing_s
             self._pending.append((apply_t, update.delta))
             self.status = LocalizationStatus.LOCALIZED
