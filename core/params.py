@@ -655,8 +655,7 @@ class LocalizationParams:
     the optimised graph."""
     keyframe_step_m: float = 0.3
     keyframe_step_rad: float = math.radians(15.0)
-    """A frame is kept as a keyframe only where no keyframe lies within these (m, rad); an accepted map registration
-    adds a node (with its measurement as a prior) once the last node is this far behind."""
+    """A frame is kept as a keyframe (a node of the pose graph) only where no keyframe lies within these (m, rad)."""
     keyframe_label_m: float = 0.1
     keyframe_floor_m: float = 0.05
     """A keyframe keeps the frame's points higher than `keyframe_floor_m` (m) that lie within `keyframe_label_m` (m)
@@ -673,13 +672,17 @@ class LocalizationParams:
     """A loop closure registers first within clip(radius_sigmas σ + radius_margin_m, radius_min_m,
     loop_radius_max_m), σ from odometry and loop closures alone (not the filter's), then again within
     `loop_fine_radius_m` from there."""
+    loop_period_s: float = 2.0
+    """A loop closure adds a factor to the graph (and optimises it) once the base moved `keyframe_step_m` or
+    `keyframe_step_rad` from the last one, or this long (s) after it; in between, an accepted loop-closure registration
+    corrects the filter alone (an EKF update against the keyframes)."""
     loop_sigma_m: float = 0.03
     loop_sigma_rad: float = 0.01
     """Measurement std (m, rad) of a loop closure along a well-constrained direction (inflated as `sigma_xy_m`)."""
-    graph_map_sigma_m: float = 0.1
-    graph_map_sigma_rad: float = math.radians(1.5)
-    """A map registration enters the graph as a prior this loose (m, rad along its constrained directions): the map
-    took in the drift, so these shape the trajectory between loop closures but do not hold it against them."""
+    graph_follows_map: bool = True
+    """The pose graph's nodes are tied by the odometry with the map registrations' corrections composed in (the filter's
+    trajectory between loop closures); False: by the wheel odometry alone (then a loop closure onto a place mid-lap
+    put the lap's nodes back onto the odometry's drift)."""
     graph_odometry_floor_m: float = 0.002
     graph_odometry_floor_rad: float = 0.001
     """Odometry between two nodes is trusted at most to these stds (m, rad), however short the step."""

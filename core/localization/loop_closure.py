@@ -4,16 +4,20 @@ estimation", "Loop closure").
 Registering against the map's surfaces cannot bound the drift over laps: the map placed them with the drifting
 pose, so a revisited place agrees with the drifted pose. Here the registered frames themselves are kept
 (`keyframes.py`) as nodes of a pose graph (`pose_graph.py`) with
-  - odometry between consecutive nodes (the wheel odometry's increment, Ω from its random walk: σ_m² s, σ_r² |Δψ|),
-  - the map registrations accepted at a node as weak priors (σ `graph_map_sigma_m` / `graph_map_sigma_rad` along the
-    directions they constrain: they carry the drift the map took in, so they only shape the trajectory),
+  - between consecutive nodes, their increment along the chain c = T_chain ∘ o (the wheel odometry o, with the map
+    registrations' corrections composed into T_chain when `graph_follows_map`, else T_chain = identity), Ω from the
+    odometry's random walk (σ_m² s, σ_r² |Δψ|): where no loop closes, the graph keeps the filter's trajectory; a
+    closure bends it as the odometry's uncertainty allows,
+  - the first node of a chain held by a prior with the filter's covariance then (the start, or a re-anchoring),
   - loop closures: a frame registered against the submap of the keyframes an earlier visit kept around the nearest
     of them (the anchor x_a), which gives x_b = x_a ∘ z with the registration's information (σ `loop_sigma_m` /
     `loop_sigma_rad` along its constrained directions).
-Each loop closure optimises the graph; T_world←odom then follows the optimised node of the frame, and P becomes that
-node's covariance from odometry and loop closures alone (the map's priors left out: they are what made the filter
-over-confident). The search radius of a loop closure is sized by that same covariance (3σ + margin, coarse then
-fine), so the end of a lap, far from where it was, still finds the surfaces kept at its start. Gates as for the
+The map's registrations do not enter the graph (as priors, even loose ones at 0.1–0.3 m, they held a lap's keyframes
+where the drift had put them against the loop closure at its end: docs/decisions.md). Each loop closure optimises the
+graph; T_world←odom then follows the optimised node of the frame, and P becomes that node's covariance in the graph.
+The search radius of a loop closure is sized by how far the base may be from the anchor by the graph (their relative
+covariance, not the filter's over-confident P; 3σ + margin, coarse then fine), so the end of a lap, far from where it
+was, still finds the surfaces kept at its start. Gates as for the
 map's registration (convergence, inlier share, degeneracy, χ²); objects whose points disagree with the submap
 leave every keyframe and are handed to the map as change evidence.
 """
@@ -36,10 +40,8 @@ from core.localization.reference import FLOOR_ID, Reference
 from core.params import LocalizationParams
 from core.types import DepthFrame
 
-ODOMETRY, MAP, LOOP, ANCHOR = "odometry", "map", "loop", "anchor"
-"""Factor kinds: odometry between nodes, a map registration's prior, a loop closure, the prior of a chain's start."""
-HONEST = (MAP,)
-"""Kinds left out of the covariance that sizes the search and becomes P (the map's priors are over-confident)."""
+ODOMETRY, LOOP, ANCHOR = "odometry", "loop", "anchor"
+"""Factor kinds: odometry between nodes, a loop closure, the prior of a chain's start."""
 
 
 @dataclass(frozen=True)
@@ -57,6 +59,9 @@ class Closure:
     registration_ms: float = math.nan
     reference_ms: float = 0.0
     disagreeing: tuple[int, ...] = ()
+    measured: np.ndarray | None = None
+    directions: degeneracy.Directions | None = None
+    """Accepted but no factor due (`loop_period_s`): the measured base pose and its directions, for the filter."""
 
 
 class LoopClosure:
@@ -67,9 +72,11 @@ class LoopClosure:
         self.graph = PoseGraph()
         self.keyframes = Keyframes(p.keyframe_step_m, p.keyframe_step_rad)
         self._last: tuple[int, np.ndarray] | None = None
-        """The latest node and the odometry pose at it."""
+        """The latest node and the chain pose at it."""
         self._target: tuple[tuple, Reference, registration.Target] | None = None
         self.closures = 0
+        self._last_factor: tuple[float, np.ndarray] | None = None
+        """Exposure time and base pose of the latest loop-closure factor."""
 
     def break_chain(self) -> None:
         """The odometry jumped (a slip, re-anchored by a global search): the next node starts a new chain."""
@@ -77,45 +84,32 @@ class LoopClosure:
 
     # --- nodes ----------------------------------------------------------------------------------------------
 
-    def node(self, pose: np.ndarray, odom: np.ndarray, P: np.ndarray) -> int:
-        """A node at `pose` (world, the current estimate), tied to the latest by the odometry's increment; the first
-        of a chain by a prior with the filter's covariance P."""
+    def node(self, pose: np.ndarray, chain: np.ndarray, P: np.ndarray) -> int:
+        """A node at `pose` (world, the current estimate), tied to the latest by the increment of the chain pose
+        `chain`; the first of a chain by a prior with the filter's covariance P."""
         p = self.params
         j = self.graph.add_node(pose)
         if self._last is None:
             self.graph.add_prior(j, pose, np.linalg.inv(P + 1e-12 * np.eye(3)), ANCHOR)
         else:
-            i, odom_i = self._last
-            z = se2.compose(se2.inverse(odom_i), odom)
+            i, chain_i = self._last
+            z = se2.compose(se2.inverse(chain_i), chain)
             s, turn = float(np.hypot(z[0], z[1])), abs(float(z[2]))
             sm, sr = p.drift_m_per_sqrt_m, p.drift_rad_per_sqrt_rad
             var = np.array([sm**2 * s + p.graph_odometry_floor_m**2, sm**2 * s + p.graph_odometry_floor_m**2,
                             sr**2 * turn + p.graph_odometry_floor_rad**2])
             self.graph.add_between(i, j, z, np.diag(1.0 / var), ODOMETRY)
-        self._last = (j, np.asarray(odom, float).copy())
+        self._last = (j, np.asarray(chain, float).copy())
         return j
 
-    def after_map_registration(self, frame: DepthFrame, predicted: np.ndarray, pose: np.ndarray, odom: np.ndarray,
-                               P: np.ndarray, points_camera: np.ndarray, ref: Reference, target: registration.Target,
-                               measured: tuple[np.ndarray, np.ndarray] | None) -> None:
-        """After a registration against the map's surfaces (the frame posed at the base's `predicted` world pose;
-        `pose` the pose after the registration, `measured` the measured pose and its information when accepted): a
-        node where the place has no keyframe yet (and the frame kept as one) or, for an accepted registration, where
-        the last node is `keyframe_step_m` behind (with the measurement as a prior)."""
+    def after_map_registration(self, frame: DepthFrame, predicted: np.ndarray, pose: np.ndarray, chain: np.ndarray,
+                               P: np.ndarray, points_camera: np.ndarray, ref: Reference, target: registration.Target
+                               ) -> None:
+        """After a registration against the map's surfaces (the frame posed at the base's `predicted` world pose,
+        `pose` the pose after the registration): where the place has no keyframe yet, a node there, the frame's
+        points on trusted surfaces kept as its keyframe."""
         p = self.params
-        poses = self.graph.x
-        covered = self.keyframes.covered(poses, pose)
-        if covered:
-            if measured is None or self._last is None:
-                return
-            last = poses[self._last[0]]
-            if (np.hypot(*(pose[:2] - last[:2])) < p.keyframe_step_m
-                    and abs(se2.wrap(float(pose[2] - last[2]))) < p.keyframe_step_rad):
-                return
-        j = self.node(pose, odom, P)
-        if measured is not None:
-            self.graph.add_prior(j, measured[0], measured[1], MAP)
-        if covered:
+        if self.keyframes.covered(self.graph.x, pose):
             return
         T = se2.to_matrix(se2.compose(pose, se2.inverse(predicted))) @ frame.T_world_camera  # the corrected camera
         world = points_camera @ T[:3, :3].T + T[:3, 3]
@@ -124,12 +118,13 @@ class LoopClosure:
         keep = (idx >= 0) & (d <= p.keyframe_label_m) & (ids >= 0) & (world[:, 2] > p.keyframe_floor_m)
         if np.sum(keep) < p.min_object_points:
             return
+        j = self.node(pose, chain, P)
         base = se2.to_matrix(se2.inverse(pose))
         self.keyframes.add(j, frame.t, world[keep] @ base[:3, :3].T + base[:3, 3], ids[keep])
 
     # --- loop closures --------------------------------------------------------------------------------------
 
-    def close(self, frame: DepthFrame, base_pose: np.ndarray, odom: np.ndarray, yaw_offset: float, P: np.ndarray,
+    def close(self, frame: DepthFrame, base_pose: np.ndarray, chain: np.ndarray, P: np.ndarray,
               source, live_ids: Collection[int], judge) -> Closure | None:
         """Register `frame` (posed by the current estimate; the base at `base_pose`) against the keyframes an earlier
         visit kept around the nearest of them; None when there is none (the map's surfaces are then the reference).
@@ -147,7 +142,7 @@ class LoopClosure:
         trusted = ref.object_ids != FLOOR_ID
         if np.sum(scan.in_view(ref.points[trusted], frame, p.max_range_m)) < p.min_trusted_points:
             return None
-        sigma_P = self._honest(odom, yaw_offset)
+        sigma_P = self._honest(self.keyframes.frames[anchor].node, chain)
         sigma = (float(np.sqrt(np.max(np.linalg.eigvalsh(sigma_P[:2, :2]))))
                  + p.max_range_m / 2 * math.sqrt(max(float(sigma_P[2, 2]), 0.0)))
         radius = float(np.clip(p.radius_sigmas * sigma + p.radius_margin_m, p.radius_min_m, p.loop_radius_max_m))
@@ -188,9 +183,12 @@ class LoopClosure:
         nis = float(y @ np.linalg.solve(Hm @ sigma_P @ Hm.T + R, y))
         if not gates.chi2_passes(nis, dirs.dof, p):
             return replace(base, verdict=Verdict.CHI2, nis=nis, dof=dirs.dof)
+        if not self._factor_due(frame.t, base_pose):
+            return replace(base, measured=measured, directions=dirs, dof=dirs.dof, nis=nis)
+        self._last_factor = (frame.t, np.asarray(base_pose, float).copy())
         info_world = Hm.T @ np.linalg.solve(R, Hm)
         a = self.keyframes.frames[anchor].node
-        j = self.node(base_pose, odom, P)
+        j = self.node(base_pose, chain, P)
         xa = self.graph.x[a]
         R3 = np.eye(3)
         R3[:2, :2] = se2.rot(float(xa[2]))
@@ -198,17 +196,27 @@ class LoopClosure:
         self.graph.optimize(p.graph_iterations)
         self.closures += 1
         pose = self.graph.x[j].copy()
-        P_new = self.graph.marginal(j, HONEST)
+        P_new = self.graph.marginal(j)
         delta = se2.compose(pose, se2.inverse(base_pose))
         return replace(base, delta=delta, pose=pose, P=P_new, dof=dirs.dof, nis=nis)
 
-    def _honest(self, odom: np.ndarray, yaw_offset: float) -> np.ndarray:
-        """The covariance of the base now from odometry and loop closures alone: the latest node's marginal without
-        the map's priors, grown by the odometry since."""
+    def _factor_due(self, t: float, pose: np.ndarray) -> bool:
+        """A loop closure adds a factor (and a node) once the base moved `keyframe_step_m` / `keyframe_step_rad` from
+        the last one's, or `loop_period_s` after it: frames of a base standing still are one measurement, not many."""
         p = self.params
-        last = self._last if self._last is not None else (self.graph.size - 1, odom)
-        P = self.graph.marginal(last[0], HONEST)
-        return predict_covariance(P, last[1], odom, yaw_offset, p.drift_m_per_sqrt_m, p.drift_rad_per_sqrt_rad)
+        if self._last_factor is None:
+            return True
+        t0, x0 = self._last_factor
+        return (t - t0 >= p.loop_period_s - 1e-9 or float(np.hypot(*(pose[:2] - x0[:2]))) >= p.keyframe_step_m
+                or abs(se2.wrap(float(pose[2] - x0[2]))) >= p.keyframe_step_rad)
+
+    def _honest(self, anchor: int, chain: np.ndarray) -> np.ndarray:
+        """How far the base now may be from where the anchor's node puts it: the covariance of the latest node relative
+        to the anchor's in the graph, grown by the odometry since."""
+        p = self.params
+        last = self._last if self._last is not None else (self.graph.size - 1, chain)
+        P = self.graph.relative(anchor, last[0])
+        return predict_covariance(P, last[1], chain, 0.0, p.drift_m_per_sqrt_m, p.drift_rad_per_sqrt_rad)
 
     def _prepared(self, anchor: int, t: float, live_ids: Collection[int], centre: np.ndarray
                   ) -> tuple[Reference, registration.Target, float]:

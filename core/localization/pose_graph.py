@@ -87,12 +87,24 @@ class PoseGraph:
 
     def marginal(self, i: int, without: tuple[str, ...] = ()) -> np.ndarray:
         """The covariance (3 × 3) of node i at the current values, factors of the kinds in `without` left out."""
+        return self._covariance((i,), without)
+
+    def relative(self, a: int, b: int, without: tuple[str, ...] = ()) -> np.ndarray:
+        """The covariance (3 × 3) of x_b − x_a (world x, y, ψ differences) at the current values, factors of the kinds
+        in `without` left out: how far b may be from where a's neighbourhood says."""
+        if a == b:
+            return np.zeros((3, 3))
+        joint = self._covariance((a, b), without)
+        A = np.hstack([-np.eye(3), np.eye(3)])
+        return A @ joint @ A.T
+
+    def _covariance(self, nodes: tuple[int, ...], without: tuple[str, ...]) -> np.ndarray:
         J, _ = self._linearized(without)
         H = (J.T @ J + DAMPING * sp.identity(3 * self.size)).tocsc()
-        E = np.zeros((3 * self.size, 3))
-        E[3 * i:3 * i + 3] = np.eye(3)
-        cols = spla.splu(H).solve(E)
-        block = cols[3 * i:3 * i + 3]
+        idx = np.concatenate([np.arange(3 * i, 3 * i + 3) for i in nodes])
+        E = np.zeros((3 * self.size, len(idx)))
+        E[idx, np.arange(len(idx))] = 1.0
+        block = spla.splu(H).solve(E)[idx]
         return 0.5 * (block + block.T)
 
     def _linearized(self, without: tuple[str, ...]) -> tuple[sp.csr_matrix, np.ndarray]:
