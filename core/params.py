@@ -652,7 +652,9 @@ class LocalizationParams:
     """A pose graph of keyframes closed onto the places an earlier visit kept (`core/localization/loop_closure.py`;
     docs/method.md, "State estimation", "Loop closure"): where an earlier visit's keyframe is near, frames register
     against those keyframes (placed by the optimised graph) instead of the map's surfaces, and T_world←odom follows
-    the optimised graph."""
+    the optimised graph. Off by default: on E4's three aisle laps it cut seed 0 from 26.3 to 8.3 cm ATE RMSE (laps 2–3
+    no longer grow) but seed 1, where the filter alone did not drift over the laps, went from 8.1 to 8.6 cm (max 13.3
+    to 15.9 cm): not better on both seeds (docs/decisions.md, "Localization", issue 25 fourth round)."""
     keyframe_step_m: float = 0.3
     keyframe_step_rad: float = math.radians(15.0)
     """A frame is kept as a keyframe (a node of the pose graph) only where no keyframe lies within these (m, rad)."""

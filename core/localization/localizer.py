@@ -9,6 +9,11 @@ passes the gates (`gates.py`), its unconstrained directions are masked (`degener
 (`pose_filter.py`) becomes due at the frame's stamp plus the modelled processing time (`apply_due`), so
 lockstep runs stay deterministic. Until enough trusted surface is in view, odometry alone is in charge.
 
+Loop closure (`loop_closure.py`, `LocalizationParams.loop_closure`): the registered frames are kept as keyframes of a
+pose graph; where an earlier visit's keyframe is in reach, the frame registers against those keyframes (placed by the
+optimised graph) instead of the map's surfaces, and an accepted closure re-optimises the graph, T_world←odom then
+following the frame's optimised node.
+
 Thread use: `correct` is the slow part and touches only the filter's covariance and the pending queue under
 `lock`; `predict`, `apply_due` and `world_pose` are cheap (a control thread may call them; issue 28 runs
 `correct` on a thread of its own in live mode).
@@ -245,6 +250,8 @@ class Localizer:
         surfaces are then the reference)."""
         p = self.params
         assert self.loops is not None
+        if self.loops.anchor(base_pose, frame.t) is None:
+            return None
         source, n = registration.thin(scan.camera_points(frame, p.stride_px, p.max_range_m), p.source_voxel_m)
         if n < p.min_source_points:
             return None

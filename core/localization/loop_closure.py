@@ -131,11 +131,7 @@ class LoopClosure:
         `source`: the frame's thinned points; `judge(ref, target, source, T)`: the objects that disagree (None:
         most of them)."""
         p = self.params
-        if self.graph.size == 0:
-            return None
-        poses = self.graph.x
-        anchor = self.keyframes.anchor(poses, base_pose, frame.t, p.loop_min_age_s, p.loop_search_m,
-                                       p.loop_search_rad)
+        anchor = self.anchor(base_pose, frame.t)
         if anchor is None:
             return None
         ref, target, ref_ms = self._prepared(anchor, frame.t, live_ids, base_pose)
@@ -199,6 +195,13 @@ class LoopClosure:
         P_new = self.graph.marginal(j)
         delta = se2.compose(pose, se2.inverse(base_pose))
         return replace(base, delta=delta, pose=pose, P=P_new, dof=dirs.dof, nis=nis)
+
+    def anchor(self, pose: np.ndarray, t: float) -> int | None:
+        """The keyframe (index) of an earlier visit nearest to `pose` at robot time t, if one is in reach."""
+        p = self.params
+        if self.graph.size == 0:
+            return None
+        return self.keyframes.anchor(self.graph.x, pose, t, p.loop_min_age_s, p.loop_search_m, p.loop_search_rad)
 
     def _factor_due(self, t: float, pose: np.ndarray) -> bool:
         """A loop closure adds a factor (and a node) once the base moved `keyframe_step_m` / `keyframe_step_rad` from
