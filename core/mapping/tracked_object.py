@@ -25,7 +25,8 @@ from core.mapping.submap import ObjectSubmap
 from core.types import MappedObject, ObjectStatus, Posterior
 
 REFIT_CHANGE = 0.03
-"""Refit the box's extent when the submap's voxel count changed by more than this fraction."""
+"""Refit the box's extent when the submap's voxel count, or the count of its well-supported voxels, changed by
+more than this fraction."""
 REFIT_YAW_GROWTH = 1.0
 """Refit its yaw (`box_yaw.side_yaw`) only when the submap grew by more than this fraction."""
 
@@ -95,6 +96,10 @@ class TrackedObject:
         self.status = ObjectStatus.ACTIVE
         self._shape: _Shape | None = None
         self._fit_voxels = -1
+        self._fit_solid = -1
+        self._surface_version = 0
+        """Counts integrations and carvings: the well-supported voxels are counted again only when it changed."""
+        self._checked_version = -1
         self._yaw: float | None = None
         self._yaw_voxels = 0
         self._world_points: np.ndarray | None = None
@@ -143,6 +148,8 @@ class TrackedObject:
 
     def _invalidate(self, change: _Change) -> None:
         """Drop what `change` makes stale: the one place that knows which cache depends on what."""
+        if change & (_Change.SURFACE | _Change.CARVED):
+            self._surface_version += 1
         if change & (_Change.SURFACE | _Change.CARVED | _Change.POSE):
             self._world_points = None
         if change & (_Change.SURFACE | _Change.CARVED | _Change.POSE | _Change.SIDES):
@@ -194,12 +201,22 @@ class TrackedObject:
         Voxels holding fewer than a quarter of the median point count are depth-noise outliers of
         the surface and are left out. The extent is refitted when the voxel count changed by more than
         `REFIT_CHANGE` since the last fit, the yaw when it grew by `REFIT_YAW_GROWTH` (or voxels were carved).
+        The well-supported voxels change without the voxel count: the median count grows where the cameras look
+        now, and a surface seen only before (a moved box's old place, after its new place was fused into it)
+        falls under the quarter; so a change of their count by `REFIT_CHANGE` refits too (a box pushed 0.5 m
+        otherwise kept its 1 m extent over both places: the fit stayed as it was when the old place was still
+        well supported).
         """
         n = len(self.submap)
-        if self._shape is not None and abs(n - self._fit_voxels) <= REFIT_CHANGE * max(self._fit_voxels, 1):
+        if self._shape is not None and self._checked_version == self._surface_version:
             return self._shape
-        self._fit_voxels = n
+        self._checked_version = self._surface_version
         solid = self._solid()
+        n_solid = int(solid.sum())
+        if self._shape is not None and abs(n - self._fit_voxels) <= REFIT_CHANGE * max(self._fit_voxels, 1) \
+                and abs(n_solid - self._fit_solid) <= REFIT_CHANGE * max(self._fit_solid, 1):
+            return self._shape
+        self._fit_voxels, self._fit_solid = n, n_solid
         pts = self.submap.points[solid] if solid.sum() >= 4 else self.submap.points
         if self._yaw is None or n > (1.0 + REFIT_YAW_GROWTH) * self._yaw_voxels:
             self._yaw, self._yaw_voxels = None, n
