@@ -11,18 +11,24 @@ before the lost object was last observed; with several, the name waits ("box_3: 
 
 The yaw a name sees is continuous from its binding: the box fit keeps yaw within ±45°, so the raw yaw jumps
 by 90° as a box turns; it is unwrapped by quarter turns toward the previous one (x and y extents swapped on
-odd turns), which keeps each face's label on the same physical face.
+odd turns, the seen sides turned with them), which keeps each face's label on the same physical face.
+
+With each named object go which of its side faces the map's points show (`core.mapping.box_fit.seen_sides`)
+and its size if known: declared with the name (`objects: {box_3: {size: [...]}}`, x and y matched to the
+mapped extent either way round), else measured along an axis while both its side faces were seen. Anchors
+are placed from those (`tasks.anchors.anchor_box`).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from app.runtime.ground_truth_map import GroundTruthMap
+from core.mapping.box_fit import BoxFit, seen_sides
 from core.mapping.world_map import WorldMap
 from core.params import MappingParams, SequencerParams
 from core.sim.world import SimWorld
@@ -42,12 +48,17 @@ class SeenObject:
     consistency: float = 1.0
     observations: int = -1
     """How often the map has matched it (−1: the true box of the ground-truth map, always observed)."""
+    sides_seen: np.ndarray | None = None
+    """Side faces its points show (2×2 bool: axis x, y; −, + side); None: all (the true box)."""
 
     @staticmethod
     def of(obj: MappedObject) -> SeenObject:
         R = obj.pose[:3, :3]
-        return SeenObject(f"object_{obj.id}", obj.pose[:3, 3].copy(), float(math.atan2(R[1, 0], R[0, 0])),
-                          np.asarray(obj.extent, float).copy(), obj.consistency, obj.observations)
+        yaw = float(math.atan2(R[1, 0], R[0, 0]))
+        extent = np.asarray(obj.extent, float).copy()
+        sides = seen_sides(obj.points, BoxFit(obj.pose[:3, 3].copy(), yaw, extent)) if len(obj.points) else None
+        return SeenObject(f"object_{obj.id}", obj.pose[:3, 3].copy(), yaw, extent, obj.consistency,
+                          obj.observations, sides)
 
 
 def seen_objects(snapshot: ObjectMapSnapshot) -> list[SeenObject]:
@@ -62,15 +73,43 @@ class _Binding:
     observations: int = -1
     last_seen_t: float = -math.inf
     lost: bool = False
+    sides_seen: np.ndarray | None = None
+    """The object's seen side faces along the binding's (continuous) axes."""
+    measured: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    """Its extent along each axis the last time both side faces of that axis were seen (NaN: never)."""
+
+
+def quarter_turns(raw: float, previous: float) -> int:
+    """How many quarter turns bring `raw` within 45° of `previous`."""
+    return round((previous - raw) / (math.pi / 2))
 
 
 def continuous_yaw(raw: float, previous: float, extent: np.ndarray) -> tuple[float, np.ndarray]:
     """`raw` shifted by quarter turns to lie within 45° of `previous`, and the extent along the new axes."""
-    k = round((previous - raw) / (math.pi / 2))
+    k = quarter_turns(raw, previous)
     ext = np.asarray(extent, float).copy()
     if k % 2:
         ext[[0, 1]] = ext[[1, 0]]
     return raw + k * math.pi / 2, ext
+
+
+def turn_sides(sides: np.ndarray | None, k: int) -> np.ndarray | None:
+    """Seen sides (2×2: axis x, y; −, +) along axes turned by `k` quarter turns: after one, the new x axis is the
+    old y and the new y the old −x."""
+    if sides is None:
+        return None
+    out = np.asarray(sides, bool).copy()
+    for _ in range(k % 4):
+        out = np.array([out[1], out[0][::-1]])
+    return out
+
+
+def matched_size(size: tuple[float, float, float], extent: np.ndarray) -> np.ndarray:
+    """A declared size along the mapped box's axes: x and y in the order nearer its extent."""
+    s = np.asarray(size, float)
+    swapped = s[[1, 0, 2]]
+    e = np.asarray(extent, float)
+    return s if np.sum(np.abs(s[:2] - e[:2])) <= np.sum(np.abs(swapped[:2] - e[:2])) else swapped
 
 
 def same_extent(a: np.ndarray, b: np.ndarray, gate_m: float) -> bool:
@@ -93,7 +132,8 @@ class ObjectNames:
         for other, b in self._bindings.items():
             if b.object_id == obj.id and other != name:
                 b.object_id, b.lost = None, True
-        self._bindings[name] = _Binding(obj.id, obj.yaw, obj.extent.copy(), obj.observations, t)
+        self._bindings[name] = _Binding(obj.id, obj.yaw, obj.extent.copy(), obj.observations, t,
+                                        sides_seen=obj.sides_seen)
 
     def bound(self) -> dict[str, str]:
         """Name → object id of the names bound now."""
@@ -115,8 +155,15 @@ class ObjectNames:
         views = []
         for oid, o in live.items():
             name, b = by_object.get(oid, (None, None))
-            yaw, extent = (o.yaw, o.extent) if b is None else (b.yaw, b.extent)
-            views.append(ObjectView(oid, name, o.position.copy(), yaw, np.asarray(extent, float), o.consistency))
+            if b is None or name is None:
+                views.append(ObjectView(oid, name, o.position.copy(), o.yaw, o.extent.copy(), o.consistency,
+                                        sides_seen=o.sides_seen))
+                continue
+            extent = np.asarray(b.extent, float)
+            declared = names[name].size if name in names else None
+            size = matched_size(declared, extent) if declared is not None else b.measured
+            views.append(ObjectView(oid, name, o.position.copy(), b.yaw, extent, o.consistency,
+                                    sides_seen=b.sides_seen, size=None if np.isnan(size[:2]).all() else size))
         return MapObjects(t, tuple(views), unresolved)
 
     def _update(self, name: str, declared: NamedObject, live: dict[str, SeenObject], t: float,
@@ -138,11 +185,17 @@ class ObjectNames:
         if not near:
             return f"{name} not yet seen"
         best = min(near, key=lambda o: float(np.linalg.norm(o.position[:2] - hint[:2])))
-        self._bindings[name] = _Binding(best.id, best.yaw, best.extent.copy(), best.observations, t)
+        self._bindings[name] = _Binding(best.id, best.yaw, best.extent.copy(), best.observations, t,
+                                        sides_seen=best.sides_seen)
         return ""
 
     def _follow(self, b: _Binding, o: SeenObject, t: float) -> None:
+        k = quarter_turns(o.yaw, b.yaw)
         b.yaw, b.extent = continuous_yaw(o.yaw, b.yaw, o.extent)
+        b.sides_seen = turn_sides(o.sides_seen, k)
+        if b.sides_seen is not None:
+            both = b.sides_seen.all(axis=1)
+            b.measured[:2] = np.where(both, b.extent[:2], b.measured[:2])
         if o.observations != b.observations or o.observations < 0:
             b.observations, b.last_seen_t = o.observations, t
 
@@ -157,7 +210,8 @@ class ObjectNames:
             return f"{name}: {len(candidates)} candidates"
         o = candidates[0]
         yaw, ext = continuous_yaw(o.yaw, b.yaw, o.extent)
-        self._bindings[name] = _Binding(o.id, yaw, ext, o.observations, t)
+        self._bindings[name] = _Binding(o.id, yaw, ext, o.observations, t, sides_seen=turn_sides(
+            o.sides_seen, quarter_turns(o.yaw, b.yaw)), measured=b.measured)  # the same box: its size stays
         return ""
 
 

@@ -486,6 +486,10 @@ class SequencerParams:
     anchor_candidate_margin_s: float = 1.0
     """A lost name re-binds only to an object first mapped at most this long before its own object was last
     observed (a box moved far is a new object, seen before the old one is removed)."""
+    anchor_settle_m: float = 0.1
+    """An anchored subtask does not complete (its dwell does not count) while its object, of known size, is mapped
+    longer than that size by more than this along a horizontal axis: the map has fused the box's old and new
+    places after a move (seen: 1.02 m for a 0.6 m box pushed 0.5 m) and has not settled yet."""
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ import numpy as np
 from core.params import HTMPCParams, SequencerParams
 from core.robot.model import READY_Q, RobotModel
 from core.types import References, RobotState
-from tasks.anchors import MapObjects, anchor_of, describe, is_anchored, resolve_subtask
+from tasks.anchors import MapObjects, anchor_of, describe, is_anchored, resolve_subtask, settling
 from tasks.occupancy import OccupancyGrid
 from tasks.path_planner import NoPathError, plan_path
 from tasks.references import (
@@ -291,6 +291,10 @@ class Sequencer:
         within = pos_err <= tol.position_m and (math.isnan(ori_err) or ori_err <= tol.orientation_deg)
         if isinstance(sub, EESubtask) and self._ee_waypoint < len(sub.waypoints):
             within = False  # intermediate EE waypoints are passed, not dwelt at
+        not_settled = settling(authored, objects, self.params.anchor_settle_m) if within else ""
+        self._note_settling(not_settled)
+        if not_settled:
+            within = False  # the goal is followed, but not reached on a map still settling
         self._held_since = (self._held_since if self._held_since is not None else t) if within else None
         held = 0.0 if self._held_since is None else t - self._held_since
         self._set_progress(Outcome.ACTIVE, elapsed, held, pos_err, ori_err)
@@ -391,6 +395,16 @@ class Sequencer:
                                      ee_hold=(self.ee_offset_base, None))
         self._switched = False
         return refs
+
+    def _note_settling(self, why: str) -> None:
+        """Show why an anchored goal within tolerance does not complete (its object's map has not settled), and
+        take the reason back once it has (`why` '')."""
+        current = self.progress[self.index].message
+        message = f"{why}: waiting" if why else ("" if current.endswith("not settled: waiting") else current)
+        if current != message:
+            if why:
+                log.info("subtask %d: %s", self.index + 1, message)
+            self.progress[self.index] = replace(self.progress[self.index], message=message)
 
     def _follow(self, authored: BaseSubtask | EESubtask, sub: BaseSubtask | EESubtask, state: RobotState) -> None:
         """Keep an anchored goal on its object: where it is placed first, the stance (EE) is set; moved more

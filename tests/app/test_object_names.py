@@ -67,3 +67,29 @@ def test_yaw_is_continuous_so_faces_keep_their_labels():
     for k, deg in enumerate([30, 40, -44, -30]):  # the fit wraps from +45° to −45° as the box turns on
         view = names.view(k * 0.1, [seen("object_1", 2.5, 0.0, math.radians(deg))], declared)
     assert math.degrees(view.named("box_3").yaw) == pytest.approx(60.0)
+
+
+def test_a_named_objects_seen_sides_turn_with_its_axes_and_a_size_seen_from_both_sides_is_kept():
+    """The seen sides follow the quarter turns of the yaw (one turn: new x = old y, new y = old −x); an extent
+    measured while both faces of an axis were seen is the name's size; a declared size is matched to the axes."""
+    from app.object_names import matched_size, turn_sides
+
+    sides = np.array([[True, False], [False, True]])  # −x and +y seen
+    np.testing.assert_array_equal(turn_sides(sides, 1), [[False, True], [False, True]])  # ±x: old ±y; +y: old −x
+    np.testing.assert_array_equal(turn_sides(sides, 4), sides)
+    np.testing.assert_allclose(matched_size((0.4, 0.6, 0.5), np.array([0.55, 0.38, 0.5])), [0.6, 0.4, 0.5])
+    names = ObjectNames()
+    declared = {"box_3": NamedObject()}
+    truth = {"box_3": np.array([2.5, 0.0, 0.3])}
+    both = SeenObject("object_1", np.array([2.5, 0.0, 0.3]), 0.0, np.array([0.6, 0.5, 0.6]), 0.9, 1,
+                      np.array([[True, True], [True, False]]))
+    view = names.view(0.0, [both], declared, truth)
+    view = names.view(0.1, [both], declared, truth)
+    assert view.named("box_3").size is not None and view.named("box_3").size[0] == pytest.approx(0.6)
+    assert math.isnan(view.named("box_3").size[1])  # y: one face only, never measured
+    front = SeenObject("object_1", np.array([2.45, 0.0, 0.3]), 0.0, np.array([0.5, 0.5, 0.6]), 0.9, 2,
+                       np.array([[True, False], [True, False]]))
+    now = names.view(0.2, [front], declared, truth).named("box_3")
+    assert now.size[0] == pytest.approx(0.6) and now.sides_seen[0].tolist() == [True, False]
+    given = names.view(0.3, [front], {"box_3": NamedObject(size=(0.6, 0.7, 0.6))}, truth).named("box_3")
+    np.testing.assert_allclose(given.size, [0.6, 0.7, 0.6])
