@@ -162,6 +162,9 @@ def test_both_faces_or_none_or_a_true_box_keep_the_mapped_box(sides):
     unknown = ObjectView("o", "box_3", np.array([2.45, 0.0, 0.3]), 0.0, np.array([0.5, 0.6, 0.6]),
                          sides_seen=seen(True, False, False, False), size=np.array([np.nan, np.nan, np.nan]))
     np.testing.assert_allclose(anchor_box(unknown)[0], [2.45, 0.0, 0.3])  # no size measured: as mapped
+    longer = ObjectView("o", "box_3", np.array([2.51, 0.0, 0.3]), 0.0, np.array([0.62, 0.6, 0.6]),
+                        sides_seen=seen(True, False, False, False), size=np.array([0.6, 0.6, 0.6]))
+    np.testing.assert_allclose(anchor_box(longer)[0], [2.51, 0.0, 0.3])  # seen over its whole depth: as mapped
 
 
 def test_a_box_mapped_longer_than_its_size_is_not_settled(robot):
