@@ -5,7 +5,8 @@ The map keeps an object's id through re-association and relocation (a box pushed
 its new pose), so a bound name simply follows its id. When POCD removes the object (moved farther, or gone),
 the name is lost and re-binds only to a *unique* candidate: a live, unnamed object of the same extent (within
 the map's association gate, x and y either way round) first mapped no earlier than `anchor_candidate_margin_s`
-before the lost object was last observed; with several, the name waits ("box_3: 2 candidates"), with none
+before the lost object was last observed, or standing where the lost object stood (the same box moved out of
+view: two boxes cannot overlap); with several, the name waits ("box_3: 2 candidates"), with none
 "box_3 not in the map". A name never bound binds to the object nearest to where it was given (the sequence's
 `objects`), or in simulation to where its scene box is, within `anchor_bind_radius_m`.
 
@@ -13,7 +14,7 @@ The yaw a name sees is continuous from its binding: the box fit keeps yaw within
 by 90° as a box turns; it is unwrapped by quarter turns toward the previous one (x and y extents swapped on
 odd turns, the seen sides turned with them), which keeps each face's label on the same physical face.
 
-With each named object go which of its side faces the map's points show (`core.mapping.box_fit.seen_sides`)
+With each named object go which of its side faces the map saw (`MappedObject.sides_seen`)
 and its size if known: declared with the name (`objects: {box_3: {size: [...]}}`, x and y matched to the
 mapped extent either way round), else measured along an axis while both its side faces were seen. Anchors
 are placed from those (`tasks.anchors.anchor_box`).
@@ -21,6 +22,7 @@ are placed from those (`tasks.anchors.anchor_box`).
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
@@ -28,13 +30,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from app.runtime.ground_truth_map import GroundTruthMap
-from core.mapping.box_fit import BoxFit, seen_sides
 from core.mapping.world_map import WorldMap
 from core.params import MappingParams, SequencerParams
 from core.sim.world import SimWorld
 from core.types import MappedObject, ObjectMapSnapshot, ObjectStatus
 from tasks.anchors import MapObjects, ObjectView
 from tasks.schema import NamedObject, TaskSequence
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -54,11 +57,9 @@ class SeenObject:
     @staticmethod
     def of(obj: MappedObject) -> SeenObject:
         R = obj.pose[:3, :3]
-        yaw = float(math.atan2(R[1, 0], R[0, 0]))
-        extent = np.asarray(obj.extent, float).copy()
-        sides = seen_sides(obj.points, BoxFit(obj.pose[:3, 3].copy(), yaw, extent)) if len(obj.points) else None
-        return SeenObject(f"object_{obj.id}", obj.pose[:3, 3].copy(), yaw, extent, obj.consistency,
-                          obj.observations, sides)
+        sides = None if obj.sides_seen is None else np.asarray(obj.sides_seen, bool).copy()
+        return SeenObject(f"object_{obj.id}", obj.pose[:3, 3].copy(), float(math.atan2(R[1, 0], R[0, 0])),
+                          np.asarray(obj.extent, float).copy(), obj.consistency, obj.observations, sides)
 
 
 def seen_objects(snapshot: ObjectMapSnapshot) -> list[SeenObject]:
@@ -77,6 +78,8 @@ class _Binding:
     """The object's seen side faces along the binding's (continuous) axes."""
     measured: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     """Its extent along each axis the last time both side faces of that axis were seen (NaN: never)."""
+    position: np.ndarray | None = None
+    """Where its object was last (world, m)."""
 
 
 def quarter_turns(raw: float, previous: float) -> int:
@@ -133,7 +136,7 @@ class ObjectNames:
             if b.object_id == obj.id and other != name:
                 b.object_id, b.lost = None, True
         self._bindings[name] = _Binding(obj.id, obj.yaw, obj.extent.copy(), obj.observations, t,
-                                        sides_seen=obj.sides_seen)
+                                        sides_seen=obj.sides_seen, position=obj.position.copy())
 
     def bound(self) -> dict[str, str]:
         """Name → object id of the names bound now."""
@@ -186,10 +189,11 @@ class ObjectNames:
             return f"{name} not yet seen"
         best = min(near, key=lambda o: float(np.linalg.norm(o.position[:2] - hint[:2])))
         self._bindings[name] = _Binding(best.id, best.yaw, best.extent.copy(), best.observations, t,
-                                        sides_seen=best.sides_seen)
+                                        sides_seen=best.sides_seen, position=best.position.copy())
         return ""
 
     def _follow(self, b: _Binding, o: SeenObject, t: float) -> None:
+        b.position = o.position.copy()
         k = quarter_turns(o.yaw, b.yaw)
         b.yaw, b.extent = continuous_yaw(o.yaw, b.yaw, o.extent)
         b.sides_seen = turn_sides(o.sides_seen, k)
@@ -202,17 +206,31 @@ class ObjectNames:
     def _rebind(self, name: str, b: _Binding, free: list[SeenObject], t: float) -> str:
         since = b.last_seen_t - self.params.anchor_candidate_margin_s
         extent = b.extent if b.extent is not None else np.zeros(3)
-        candidates = [o for o in free if self._first_seen.get(o.id, t) >= since
-                      and same_extent(o.extent, extent, self.gate_m)]
+        candidates = [o for o in free if same_extent(o.extent, extent, self.gate_m)
+                      and (self._first_seen.get(o.id, t) >= since or self._overlaps(b, o))]
         if not candidates:
             return f"{name} not in the map"
         if len(candidates) > 1:
             return f"{name}: {len(candidates)} candidates"
         o = candidates[0]
         yaw, ext = continuous_yaw(o.yaw, b.yaw, o.extent)
+        log.info("%s re-bound to %s", name, o.id)
         self._bindings[name] = _Binding(o.id, yaw, ext, o.observations, t, sides_seen=turn_sides(
-            o.sides_seen, quarter_turns(o.yaw, b.yaw)), measured=b.measured)  # the same box: its size stays
+            o.sides_seen, quarter_turns(o.yaw, b.yaw)), measured=b.measured,  # the same box: its size stays
+            position=o.position.copy())
         return ""
+
+    def _overlaps(self, b: _Binding, o: SeenObject) -> bool:
+        """Does `o` stand where the lost object stood (centres closer than the smaller footprint side less
+        `anchor_overlap_margin_m`)? Two boxes cannot stand in one place: it is the same box, moved while out of
+        view. Such a box is mapped as a new object while the old one is still matched (the two overlap) until
+        POCD removes it, so it is older than the `anchor_candidate_margin_s` window allows (measured on the
+        bench's lap 2: box_a moved 0.34 m, the new object first mapped 3.3 s before the old one was last
+        observed, and the name waited 'not in the map' until the pick timed out)."""
+        if b.position is None or b.extent is None:
+            return False
+        side = min(float(np.min(b.extent[:2])), float(np.min(o.extent[:2])))
+        return float(np.linalg.norm(o.position[:2] - b.position[:2])) < side - self.params.anchor_overlap_margin_m
 
 
 def map_objects(names: ObjectNames, world_map: WorldMap, sequence: TaskSequence, world: SimWorld | None,

@@ -291,7 +291,7 @@ class Sequencer:
         within = pos_err <= tol.position_m and (math.isnan(ori_err) or ori_err <= tol.orientation_deg)
         if isinstance(sub, EESubtask) and self._ee_waypoint < len(sub.waypoints):
             within = False  # intermediate EE waypoints are passed, not dwelt at
-        not_settled = settling(authored, objects, self.params.anchor_settle_m) if within else ""
+        not_settled = settling(authored, objects) if within else ""
         self._note_settling(not_settled)
         if not_settled:
             within = False  # the goal is followed, but not reached on a map still settling
@@ -307,6 +307,7 @@ class Sequencer:
         if elapsed > sub.timeout_s:
             p = self.progress[self.index]
             why = "no path to the goal; " if p.no_path else "blocked; " if p.blocked is not None else ""
+            why = f"{not_settled}; {why}" if not_settled else why
             ori = "" if math.isnan(ori_err) else f", {ori_err:.0f}°"  # 0.01 m off may fail by its heading
             msg = f"timed out after {sub.timeout_s:g} s ({why}{pos_err:.2f} m{ori} from the goal)"
             self._set_progress(Outcome.FAILED, elapsed, held, pos_err, ori_err, msg)

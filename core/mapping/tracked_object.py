@@ -18,7 +18,7 @@ from enum import Flag, auto
 
 import numpy as np
 
-from core.mapping.box_fit import BoxFit, fit_upright_box
+from core.mapping.box_fit import BoxFit, fit_upright_box, seen_sides
 from core.mapping.completion import Completion
 from core.mapping.footprint import Footprint
 from core.mapping.submap import ObjectSubmap
@@ -54,6 +54,8 @@ class _Shape:
     footprint: Footprint
     box_like: bool
     """Every point of the footprint lies within `box_fill_max_m` of the seen surface."""
+    sides_seen: np.ndarray
+    """Which side faces of the fit the well-supported voxels show (`seen_sides`)."""
 
 
 def noise_weight(points_world: np.ndarray, camera_world: np.ndarray, near_m: float = 0.5) -> np.ndarray:
@@ -223,7 +225,7 @@ class TrackedObject:
         fit = fit_upright_box(pts, floor_z=-self.T_world_object[2, 3], floor_snap_m=self.floor_snap_m, yaw=self._yaw)
         self._yaw = fit.yaw
         footprint = Footprint.of(pts, self.submap.voxel_m)
-        self._shape = _Shape(fit, footprint, footprint.box_gap(fit) <= self.box_fill_max_m)
+        self._shape = _Shape(fit, footprint, footprint.box_gap(fit) <= self.box_fill_max_m, seen_sides(pts, fit))
         self._invalidate(_Change.REFIT)
         return self._shape
 
@@ -337,4 +339,4 @@ class TrackedObject:
     def snapshot(self) -> MappedObject:
         return MappedObject(id=self.id, pose=self.pose, extent=self.extent.copy(), points=self.world_points.copy(),
                             posterior=self.posterior, status=self.status, observations=self.observations,
-                            last_seen_t=self.last_seen_t)
+                            last_seen_t=self.last_seen_t, sides_seen=self._current_shape().sides_seen.copy())

@@ -59,6 +59,23 @@ def test_a_box_found_elsewhere_before_the_old_one_goes_is_a_candidate():
     assert names.view(6.0, [seen("object_4", 2.5, 0.6)], declared).named("box_3").id == "object_4"
 
 
+def test_a_box_moved_out_of_view_found_where_it_overlaps_its_old_place_is_a_candidate():
+    """The bench's lap 2: box_a moved 0.34 m while unseen; the new place is mapped as a new object while the old
+    one is still matched (they overlap) for 3 s before POCD removes it: the new one overlaps where the old one
+    stood, so it is the same box. A box standing beside it (0.6 m, touching) is not."""
+    names = ObjectNames()
+    declared = {"box_3": NamedObject(position=(2.2, 1.3, 0.3))}
+    names.view(0.0, [seen("object_1", 2.2, 1.3)], declared)
+    names.view(24.0, [seen("object_1", 2.2, 1.3, observations=5), seen("object_7", 1.97, 1.03)], declared)
+    names.view(27.6, [seen("object_1", 2.2, 1.3, observations=9), seen("object_7", 1.97, 1.03)], declared)
+    assert names.view(28.0, [seen("object_7", 1.97, 1.03)], declared).named("box_3").id == "object_7"
+    beside = ObjectNames()
+    beside.view(0.0, [seen("object_1", 2.2, 1.3)], declared)
+    beside.view(24.0, [seen("object_1", 2.2, 1.3, observations=5), seen("object_7", 2.2, 0.7)], declared)
+    beside.view(27.6, [seen("object_1", 2.2, 1.3, observations=9), seen("object_7", 2.2, 0.7)], declared)
+    assert beside.view(28.0, [seen("object_7", 2.2, 0.7)], declared).unresolved == {"box_3": "box_3 not in the map"}
+
+
 def test_yaw_is_continuous_so_faces_keep_their_labels():
     yaw, ext = continuous_yaw(-math.radians(40), math.radians(40), np.array([0.6, 0.4, 0.5]))
     assert math.degrees(yaw) == pytest.approx(50.0) and list(ext) == [0.4, 0.6, 0.5]

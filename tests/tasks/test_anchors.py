@@ -172,14 +172,28 @@ def test_a_box_mapped_longer_than_its_size_is_not_settled(robot):
     subtask does not complete on it; once the box is mapped its size again, it does."""
     size = np.array([0.6, 0.6, 0.6])
     fused = ObjectView("o", "box_3", np.array([2.5, 0.2, 0.3]), 0.0, np.array([0.6, 1.02, 0.6]), size=size)
-    assert unsettled(fused, 0.1) == "box_3 mapped 1.02 m along its y, 0.60 m known: not settled"
+    assert unsettled(fused, 0.15) == "box_3 mapped 1.02 m along its y, 0.60 m known: not settled"
+    assert unsettled(fused, 0.25) == ""  # a centre 21 cm off is within a 25 cm tolerance
     assert unsettled(ObjectView("o", "box_3", np.array([2.5, 0.2, 0.3]), 0.0, np.array([0.6, 1.02, 0.6])), 0.1) == ""
+    averaged = ObjectView("o", "box_3", np.array([4.16, 1.54, 0.3]), 0.0, np.array([0.48, 0.51, 0.6]), size=size,
+                          sides_seen=seen(True, True, True, True))  # both faces seen, yet 0.48 m: two places averaged
+    assert unsettled(averaged, 0.03) == "box_3 mapped 0.48 m along its x, 0.60 m known: not settled"
+    assert unsettled(averaged, 0.15) == ""  # a base approach's 15 cm: the box is good enough for that
+    one_side = ObjectView("o", "box_3", np.array([4.16, 1.54, 0.3]), 0.0, np.array([0.48, 0.6, 0.6]), size=size,
+                          sides_seen=seen(True, False, False, False))  # its far side unseen: short is expected
+    assert unsettled(one_side, 0.03) == ""
     s = Sequencer(robot, parse_sequence(GOOD))
     at_goal = state_at(1.3, 0.2)  # the approach: 0.9 m before the front face
     s.update(at_goal, np.zeros((0, 3)), 0.0, MapObjects(0.0, (fused,)))
     s.update(at_goal, np.zeros((0, 3)), 0.1, MapObjects(0.1, (fused,)))
     assert s.index == 0 and s.progress[0].position_error_m < 0.01
     assert s.progress[0].message == "box_3 mapped 1.02 m along its y, 0.60 m known: not settled: waiting"
+    late = Sequencer(robot, parse_sequence(GOOD))
+    late.update(at_goal, np.zeros((0, 3)), 0.0, MapObjects(0.0, (fused,)))
+    late.update(at_goal, np.zeros((0, 3)), 999.0, MapObjects(999.0, (fused,)))  # past its timeout: failed, with why
+    assert late.progress[0].outcome == Outcome.FAILED
+    assert late.progress[0].message.startswith("timed out after 120 s (box_3 mapped 1.02 m along its y, 0.60 m known:"
+                                               " not settled; 0.00 m")
     settled = ObjectView("o", "box_3", np.array([2.5, 0.2, 0.3]), 0.0, np.array([0.6, 0.62, 0.6]), size=size)
     s.update(at_goal, np.zeros((0, 3)), 0.2, MapObjects(0.2, (settled,)))
     assert s.index == 1 and s.progress[0].outcome == Outcome.DONE
