@@ -291,7 +291,7 @@ class Sequencer:
         within = pos_err <= tol.position_m and (math.isnan(ori_err) or ori_err <= tol.orientation_deg)
         if isinstance(sub, EESubtask) and self._ee_waypoint < len(sub.waypoints):
             within = False  # intermediate EE waypoints are passed, not dwelt at
-        not_settled = settling(authored, objects) if within else ""
+        not_settled = settling(authored, objects, self.params.anchor_settle_m) if within else ""
         self._note_settling(not_settled)
         if not_settled:
             within = False  # the goal is followed, but not reached on a map still settling
