@@ -6,7 +6,8 @@ its new pose), so a bound name simply follows its id. When POCD removes the obje
 the name is lost and re-binds only to a *unique* candidate: a live, unnamed object of the same extent (within
 the map's association gate, x and y either way round) first mapped no earlier than `anchor_candidate_margin_s`
 before the lost object was last observed, or standing where the lost object stood (the same box moved out of
-view: two boxes cannot overlap); with several, the name waits ("box_3: 2 candidates"), with none
+view: two boxes cannot overlap), and not standing where another named object stood (that one's box, moved);
+with several, the name waits ("box_3: 2 candidates"), with none
 "box_3 not in the map". A name never bound binds to the object nearest to where it was given (the sequence's
 `objects`), or in simulation to where its scene box is, within `anchor_bind_radius_m`.
 
@@ -206,8 +207,10 @@ class ObjectNames:
     def _rebind(self, name: str, b: _Binding, free: list[SeenObject], t: float) -> str:
         since = b.last_seen_t - self.params.anchor_candidate_margin_s
         extent = b.extent if b.extent is not None else np.zeros(3)
+        others = [x for n, x in self._bindings.items() if n != name]
         candidates = [o for o in free if same_extent(o.extent, extent, self.gate_m)
-                      and (self._first_seen.get(o.id, t) >= since or self._overlaps(b, o))]
+                      and (self._first_seen.get(o.id, t) >= since or self._overlaps(b, o))
+                      and not any(self._overlaps(x, o) for x in others)]
         if not candidates:
             return f"{name} not in the map"
         if len(candidates) > 1:
