@@ -224,7 +224,7 @@ class ObjectNames:
         return ""
 
     def _overlaps(self, b: _Binding, o: SeenObject) -> bool:
-        """Does `o` stand where the lost object stood (centres closer than the smaller footprint side less
+        """Does `o` stand where the binding's object stood (centres closer than that box's smaller side less
         `anchor_overlap_margin_m`)? Two boxes cannot stand in one place: it is the same box, moved while out of
         view. Such a box is mapped as a new object while the old one is still matched (the two overlap) until
         POCD removes it, so it is older than the `anchor_candidate_margin_s` window allows (measured on the
@@ -232,7 +232,7 @@ class ObjectNames:
         observed, and the name waited 'not in the map' until the pick timed out)."""
         if b.position is None or b.extent is None:
             return False
-        side = min(float(np.min(b.extent[:2])), float(np.min(o.extent[:2])))
+        side = float(np.min(b.extent[:2]))  # the box that stood there: a new object is often a partial view
         return float(np.linalg.norm(o.position[:2] - b.position[:2])) < side - self.params.anchor_overlap_margin_m
 
 

@@ -86,7 +86,8 @@ def test_a_lost_name_does_not_take_another_named_boxs_new_place():
     names.view(0.0, both, declared)
     names.view(47.0, [seen("object_1", 1.7, 1.3, observations=9), seen("object_2", 4.2, 2.0, observations=9)],
                declared)
-    view = names.view(47.5, [seen("object_2", 4.2, 2.0, observations=9), seen("object_8", 4.38, 1.65)], declared)
+    partial = seen("object_8", 4.35, 1.64, extent=[0.4, 0.45, 0.45])  # first seen in part, 0.35 m from box_c
+    view = names.view(47.5, [seen("object_2", 4.2, 2.0, observations=9), partial], declared)
     assert view.named("box_a") is None and view.unresolved["box_a"] == "box_a not in the map"
 
 
