@@ -5,20 +5,28 @@ The map keeps an object's id through re-association and relocation (a box pushed
 its new pose), so a bound name simply follows its id. When POCD removes the object (moved farther, or gone),
 the name is lost and re-binds only to a *unique* candidate: a live, unnamed object of the same extent (within
 the map's association gate, x and y either way round) first mapped no earlier than `anchor_candidate_margin_s`
-before the lost object was last observed; with several, the name waits ("box_3: 2 candidates"), with none
+before the lost object was last observed, or standing where the lost object stood (the same box moved out of
+view: two boxes cannot overlap), and not standing where another named object stood (that one's box, moved);
+with several, the name waits ("box_3: 2 candidates"), with none
 "box_3 not in the map". A name never bound binds to the object nearest to where it was given (the sequence's
 `objects`), or in simulation to where its scene box is, within `anchor_bind_radius_m`.
 
 The yaw a name sees is continuous from its binding: the box fit keeps yaw within ±45°, so the raw yaw jumps
 by 90° as a box turns; it is unwrapped by quarter turns toward the previous one (x and y extents swapped on
-odd turns), which keeps each face's label on the same physical face.
+odd turns, the seen sides turned with them), which keeps each face's label on the same physical face.
+
+With each named object go which of its side faces the map saw (`MappedObject.sides_seen`)
+and its size if known: declared with the name (`objects: {box_3: {size: [...]}}`, x and y matched to the
+mapped extent either way round), else measured along an axis while both its side faces were seen. Anchors
+are placed from those (`tasks.anchors.anchor_box`).
 """
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -29,6 +37,8 @@ from core.sim.world import SimWorld
 from core.types import MappedObject, ObjectMapSnapshot, ObjectStatus
 from tasks.anchors import MapObjects, ObjectView
 from tasks.schema import NamedObject, TaskSequence
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -42,12 +52,15 @@ class SeenObject:
     consistency: float = 1.0
     observations: int = -1
     """How often the map has matched it (−1: the true box of the ground-truth map, always observed)."""
+    sides_seen: np.ndarray | None = None
+    """Side faces its points show (2×2 bool: axis x, y; −, + side); None: all (the true box)."""
 
     @staticmethod
     def of(obj: MappedObject) -> SeenObject:
         R = obj.pose[:3, :3]
+        sides = None if obj.sides_seen is None else np.asarray(obj.sides_seen, bool).copy()
         return SeenObject(f"object_{obj.id}", obj.pose[:3, 3].copy(), float(math.atan2(R[1, 0], R[0, 0])),
-                          np.asarray(obj.extent, float).copy(), obj.consistency, obj.observations)
+                          np.asarray(obj.extent, float).copy(), obj.consistency, obj.observations, sides)
 
 
 def seen_objects(snapshot: ObjectMapSnapshot) -> list[SeenObject]:
@@ -62,15 +75,45 @@ class _Binding:
     observations: int = -1
     last_seen_t: float = -math.inf
     lost: bool = False
+    sides_seen: np.ndarray | None = None
+    """The object's seen side faces along the binding's (continuous) axes."""
+    measured: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    """Its extent along each axis the last time both side faces of that axis were seen (NaN: never)."""
+    position: np.ndarray | None = None
+    """Where its object was last (world, m)."""
+
+
+def quarter_turns(raw: float, previous: float) -> int:
+    """How many quarter turns bring `raw` within 45° of `previous`."""
+    return round((previous - raw) / (math.pi / 2))
 
 
 def continuous_yaw(raw: float, previous: float, extent: np.ndarray) -> tuple[float, np.ndarray]:
     """`raw` shifted by quarter turns to lie within 45° of `previous`, and the extent along the new axes."""
-    k = round((previous - raw) / (math.pi / 2))
+    k = quarter_turns(raw, previous)
     ext = np.asarray(extent, float).copy()
     if k % 2:
         ext[[0, 1]] = ext[[1, 0]]
     return raw + k * math.pi / 2, ext
+
+
+def turn_sides(sides: np.ndarray | None, k: int) -> np.ndarray | None:
+    """Seen sides (2×2: axis x, y; −, +) along axes turned by `k` quarter turns: after one, the new x axis is the
+    old y and the new y the old −x."""
+    if sides is None:
+        return None
+    out = np.asarray(sides, bool).copy()
+    for _ in range(k % 4):
+        out = np.array([out[1], out[0][::-1]])
+    return out
+
+
+def matched_size(size: tuple[float, float, float], extent: np.ndarray) -> np.ndarray:
+    """A declared size along the mapped box's axes: x and y in the order nearer its extent."""
+    s = np.asarray(size, float)
+    swapped = s[[1, 0, 2]]
+    e = np.asarray(extent, float)
+    return s if np.sum(np.abs(s[:2] - e[:2])) <= np.sum(np.abs(swapped[:2] - e[:2])) else swapped
 
 
 def same_extent(a: np.ndarray, b: np.ndarray, gate_m: float) -> bool:
@@ -93,7 +136,8 @@ class ObjectNames:
         for other, b in self._bindings.items():
             if b.object_id == obj.id and other != name:
                 b.object_id, b.lost = None, True
-        self._bindings[name] = _Binding(obj.id, obj.yaw, obj.extent.copy(), obj.observations, t)
+        self._bindings[name] = _Binding(obj.id, obj.yaw, obj.extent.copy(), obj.observations, t,
+                                        sides_seen=obj.sides_seen, position=obj.position.copy())
 
     def bound(self) -> dict[str, str]:
         """Name → object id of the names bound now."""
@@ -115,8 +159,15 @@ class ObjectNames:
         views = []
         for oid, o in live.items():
             name, b = by_object.get(oid, (None, None))
-            yaw, extent = (o.yaw, o.extent) if b is None else (b.yaw, b.extent)
-            views.append(ObjectView(oid, name, o.position.copy(), yaw, np.asarray(extent, float), o.consistency))
+            if b is None or name is None:
+                views.append(ObjectView(oid, name, o.position.copy(), o.yaw, o.extent.copy(), o.consistency,
+                                        sides_seen=o.sides_seen))
+                continue
+            extent = np.asarray(b.extent, float)
+            declared = names[name].size if name in names else None
+            size = matched_size(declared, extent) if declared is not None else b.measured
+            views.append(ObjectView(oid, name, o.position.copy(), b.yaw, extent, o.consistency,
+                                    sides_seen=b.sides_seen, size=None if np.isnan(size[:2]).all() else size))
         return MapObjects(t, tuple(views), unresolved)
 
     def _update(self, name: str, declared: NamedObject, live: dict[str, SeenObject], t: float,
@@ -138,27 +189,51 @@ class ObjectNames:
         if not near:
             return f"{name} not yet seen"
         best = min(near, key=lambda o: float(np.linalg.norm(o.position[:2] - hint[:2])))
-        self._bindings[name] = _Binding(best.id, best.yaw, best.extent.copy(), best.observations, t)
+        self._bindings[name] = _Binding(best.id, best.yaw, best.extent.copy(), best.observations, t,
+                                        sides_seen=best.sides_seen, position=best.position.copy())
         return ""
 
     def _follow(self, b: _Binding, o: SeenObject, t: float) -> None:
+        b.position = o.position.copy()
+        k = quarter_turns(o.yaw, b.yaw)
         b.yaw, b.extent = continuous_yaw(o.yaw, b.yaw, o.extent)
+        b.sides_seen = turn_sides(o.sides_seen, k)
+        if b.sides_seen is not None:
+            both = b.sides_seen.all(axis=1)
+            b.measured[:2] = np.where(both, b.extent[:2], b.measured[:2])
         if o.observations != b.observations or o.observations < 0:
             b.observations, b.last_seen_t = o.observations, t
 
     def _rebind(self, name: str, b: _Binding, free: list[SeenObject], t: float) -> str:
         since = b.last_seen_t - self.params.anchor_candidate_margin_s
         extent = b.extent if b.extent is not None else np.zeros(3)
-        candidates = [o for o in free if self._first_seen.get(o.id, t) >= since
-                      and same_extent(o.extent, extent, self.gate_m)]
+        others = [x for n, x in self._bindings.items() if n != name]
+        candidates = [o for o in free if same_extent(o.extent, extent, self.gate_m)
+                      and (self._first_seen.get(o.id, t) >= since or self._overlaps(b, o))
+                      and not any(self._overlaps(x, o) for x in others)]
         if not candidates:
             return f"{name} not in the map"
         if len(candidates) > 1:
             return f"{name}: {len(candidates)} candidates"
         o = candidates[0]
         yaw, ext = continuous_yaw(o.yaw, b.yaw, o.extent)
-        self._bindings[name] = _Binding(o.id, yaw, ext, o.observations, t)
+        log.info("%s re-bound to %s", name, o.id)
+        self._bindings[name] = _Binding(o.id, yaw, ext, o.observations, t, sides_seen=turn_sides(
+            o.sides_seen, quarter_turns(o.yaw, b.yaw)), measured=b.measured,  # the same box: its size stays
+            position=o.position.copy())
         return ""
+
+    def _overlaps(self, b: _Binding, o: SeenObject) -> bool:
+        """Does `o` stand where the binding's object stood (centres closer than that box's smaller side less
+        `anchor_overlap_margin_m`)? Two boxes cannot stand in one place: it is the same box, moved while out of
+        view. Such a box is mapped as a new object while the old one is still matched (the two overlap) until
+        POCD removes it, so it is older than the `anchor_candidate_margin_s` window allows (measured on the
+        bench's lap 2: box_a moved 0.34 m, the new object first mapped 3.3 s before the old one was last
+        observed, and the name waited 'not in the map' until the pick timed out)."""
+        if b.position is None or b.extent is None:
+            return False
+        side = float(np.min(b.extent[:2]))  # the box that stood there: a new object is often a partial view
+        return float(np.linalg.norm(o.position[:2] - b.position[:2])) < side - self.params.anchor_overlap_margin_m
 
 
 def map_objects(names: ObjectNames, world_map: WorldMap, sequence: TaskSequence, world: SimWorld | None,

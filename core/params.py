@@ -490,6 +490,14 @@ class SequencerParams:
     anchor_candidate_margin_s: float = 1.0
     """A lost name re-binds only to an object first mapped at most this long before its own object was last
     observed (a box moved far is a new object, seen before the old one is removed)."""
+    anchor_settle_m: float = 0.15
+    """An anchored subtask does not complete (its dwell does not count) while its object, of known size, is mapped
+    longer than that size by more than this along a horizontal axis: the map has fused the box's old and new
+    places after a move (seen: 1.02 m for a 0.6 m box pushed 0.5 m). 2 × a pick's 3 cm tolerance held a lap-1
+    pick 0.7 cm from the true box on a 0.67 m box (bench)."""
+    anchor_overlap_margin_m: float = 0.15
+    """... or to one that stands where the lost object stood: centres closer than the smaller footprint side less
+    this (0.45 m for 0.6 m boxes; two boxes side by side stand 0.6 m apart, mapped within a few centimetres)."""
 
 
 @dataclass(frozen=True)

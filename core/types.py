@@ -123,6 +123,9 @@ class MappedObject:
     observations: int = 0
     last_seen_t: float = float("nan")
     """Time (s) of the newest frame that observed the object (matched it or created it)."""
+    sides_seen: np.ndarray | None = None
+    """Which side faces of its box its well-supported surface shows (2×2 bool: the box's x, y axes; −, + side);
+    None: not known. An unseen side is only as far as the top was seen (`core.mapping.box_fit.seen_sides`)."""
 
     @property
     def consistency(self) -> float:

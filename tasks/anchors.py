@@ -5,6 +5,13 @@ tasks/ reads the map only through `MapObjects`, a narrow typed view that app/ bu
 has no object now, why ("box_3 not in the map", "box_3: 2 candidates", "box_3 not yet seen"). The yaw is
 continuous since the name was bound (the box fit keeps yaw within ±45°, which would relabel the faces of a
 turning box), and the extent is along the object's own axes at that yaw.
+
+A mapped box is what the cameras saw of it: seen from one side, it is only as deep as the part of its top that
+was seen, and its centre lies that much nearer the robot. So an anchored pose is placed from the faces the
+cameras saw: along a horizontal axis where one side face was seen and the other not, and the box is mapped
+shorter than its known size, it keeps the seen face and takes that size there (`ObjectView.size`: declared
+with the name, or measured while both faces were seen); otherwise it is the map's box (`anchor_box`). The map
+itself stays as it is, and conservative where nothing was seen (its completion, for collisions, is apart).
 """
 
 from __future__ import annotations
@@ -25,7 +32,9 @@ _FACE_AXES: dict[Face, tuple[int, float]] = {"top": (2, 1.0), "front": (0, -1.0)
 @dataclass(frozen=True)
 class ObjectView:
     """One mapped object as tasks/ sees it: centre `position` (m), `yaw` (rad), full `extent` (m) along its own
-    axes, E[v] `consistency`, `status` ('active')."""
+    axes, E[v] `consistency`, `status` ('active'); `sides_seen` (2×2 bool: axis x, y; −, + side) which side faces
+    the cameras saw (None: all, e.g. a true box), `size` its known full size (3,) along its own axes (None:
+    unknown)."""
 
     id: str
     name: str | None
@@ -34,6 +43,8 @@ class ObjectView:
     extent: np.ndarray
     consistency: float = 1.0
     status: str = "active"
+    sides_seen: np.ndarray | None = None
+    size: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -64,10 +75,58 @@ def _rot_z(yaw: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
+def anchor_box(obj: ObjectView) -> tuple[np.ndarray, np.ndarray]:
+    """Centre (3, world) and extent (3, own axes) of the box anchors are placed on: the map's box, except along a
+    horizontal axis with one side face seen, mapped shorter than a known size, where the seen face stays and the
+    box reaches the known size away from it (the unseen side's position is only as far as the top was seen).
+    Mapped as long as its size or longer, the map's centre stays: a face seen at a grazing angle, or under an
+    older odometry drift, lies a few centimetres off (measured 2.7 cm on the bench's box_a), and the far side
+    was seen too."""
+    centre = np.asarray(obj.position, float).copy()
+    extent = np.asarray(obj.extent, float).copy()
+    if obj.sides_seen is None or obj.size is None:
+        return centre, extent
+    shift = np.zeros(3)
+    for a in (0, 1):
+        minus, plus = bool(obj.sides_seen[a][0]), bool(obj.sides_seen[a][1])
+        if minus == plus:
+            continue
+        size = float(obj.size[a])
+        if not math.isfinite(size) or extent[a] >= size:
+            continue  # seen over its whole size (or more: `unsettled`): the map's box is the better estimate
+        shift[a] = (size - extent[a]) / 2 * (1.0 if minus else -1.0)  # away from the seen face
+        extent[a] = size
+    return centre + _rot_z(obj.yaw) @ shift, extent
+
+
+def unsettled(obj: ObjectView, longer_m: float) -> str:
+    """Why `obj` is not to be trusted for completing an anchored subtask now ('' if it is): mapped longer than its
+    known size by more than `longer_m` along a horizontal axis (the map fused a moved box's old and new places
+    into one long box). Shorter is expected where a side was not seen (`anchor_box` takes care of it); shorter
+    with both sides seen was tried as a sign too and held picks that were 0.7-3 cm from the true box (bench)."""
+    if obj.size is None:
+        return ""
+    extent = np.asarray(obj.extent, float)
+    for a, axis in ((0, "x"), (1, "y")):
+        size = float(obj.size[a])
+        if math.isfinite(size) and extent[a] > size + longer_m:
+            return f"{obj.name or obj.id} mapped {extent[a]:.2f} m along its {axis}, {size:.2f} m known: not settled"
+    return ""
+
+
+def settling(sub: BaseSubtask | EESubtask, objects: MapObjects | None, longer_m: float) -> str:
+    """Why the subtask's anchored goal may not complete yet ('' when it may; `unsettled`)."""
+    anchor = anchor_of(sub)
+    obj = None if anchor is None or objects is None else objects.named(anchor.object)
+    return "" if obj is None else unsettled(obj, longer_m)
+
+
 def anchor_position(anchor: Anchor, obj: ObjectView) -> np.ndarray:
-    """World position (3,) of the anchored point: object centre + R_z(yaw) (face centre + offset)."""
-    local = face_point(anchor.face, obj.extent) + np.asarray(anchor.offset, float)
-    return np.asarray(obj.position, float) + _rot_z(obj.yaw) @ local
+    """World position (3,) of the anchored point: box centre + R_z(yaw) (face centre + offset), on the box
+    `anchor_box` places from the faces seen."""
+    centre, extent = anchor_box(obj)
+    local = face_point(anchor.face, extent) + np.asarray(anchor.offset, float)
+    return centre + _rot_z(obj.yaw) @ local
 
 
 def _world_rpy(anchor: Anchor, obj: ObjectView) -> tuple[float, float, float] | None:

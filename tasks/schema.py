@@ -15,6 +15,7 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
+    PositiveFloat,
     SerializerFunctionWrapHandler,
     ValidationError,
     field_validator,
@@ -239,10 +240,13 @@ Subtask = Annotated[BaseSubtask | EESubtask, Field(discriminator="kind")]
 
 class NamedObject(_Strict):
     """A name for a mapped object: where the operator saw it when naming it (world, m; None: a simulated scene
-    box's id, bound where the box is). A new run binds the name to the mapped object nearest there."""
+    box's id, bound where the box is). A new run binds the name to the mapped object nearest there. `size`: its
+    full size (m) along its x, y, z if known (x and y either way round): anchors on it are then placed from the
+    faces the cameras saw, where the map has seen it from one side only (docs/design.md, "Anchored targets")."""
 
     position: _Vec3 | None = None
     yaw_deg: float = 0.0
+    size: tuple[PositiveFloat, PositiveFloat, PositiveFloat] | None = None
 
 
 class TaskSequence(_Strict):

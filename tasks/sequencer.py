@@ -18,7 +18,7 @@ import numpy as np
 from core.params import HTMPCParams, SequencerParams
 from core.robot.model import RobotModel
 from core.types import References, RobotState
-from tasks.anchors import MapObjects, anchor_of, describe, is_anchored, resolve_subtask
+from tasks.anchors import MapObjects, anchor_of, describe, is_anchored, resolve_subtask, settling
 from tasks.occupancy import OccupancyGrid
 from tasks.path_planner import NoPathError, plan_path
 from tasks.ready_hand import ReadyHand
@@ -293,6 +293,10 @@ class Sequencer:
         within = pos_err <= tol.position_m and (math.isnan(ori_err) or ori_err <= tol.orientation_deg)
         if isinstance(sub, EESubtask) and self._ee_waypoint < len(sub.waypoints):
             within = False  # intermediate EE waypoints are passed, not dwelt at
+        not_settled = settling(authored, objects, self.params.anchor_settle_m) if within else ""
+        self._note_settling(not_settled)
+        if not_settled:
+            within = False  # the goal is followed, but not reached on a map still settling
         self._held_since = (self._held_since if self._held_since is not None else t) if within else None
         held = 0.0 if self._held_since is None else t - self._held_since
         self._set_progress(Outcome.ACTIVE, elapsed, held, pos_err, ori_err)
@@ -305,6 +309,7 @@ class Sequencer:
         if elapsed > sub.timeout_s:
             p = self.progress[self.index]
             why = "no path to the goal; " if p.no_path else "blocked; " if p.blocked is not None else ""
+            why = f"{not_settled}; {why}" if not_settled else why
             ori = "" if math.isnan(ori_err) else f", {ori_err:.0f}°"  # 0.01 m off may fail by its heading
             msg = f"timed out after {sub.timeout_s:g} s ({why}{pos_err:.2f} m{ori} from the goal)"
             self._set_progress(Outcome.FAILED, elapsed, held, pos_err, ori_err, msg)
@@ -392,6 +397,16 @@ class Sequencer:
                                      self.params, self.n_nodes, self.dt, ("base", "ee"), self._switched)
         self._switched = False
         return refs
+
+    def _note_settling(self, why: str) -> None:
+        """Show why an anchored goal within tolerance does not complete (its object's map has not settled), and
+        take the reason back once it has (`why` '')."""
+        current = self.progress[self.index].message
+        message = f"{why}: waiting" if why else ("" if current.endswith("not settled: waiting") else current)
+        if current != message:
+            if why:
+                log.info("subtask %d: %s", self.index + 1, message)
+            self.progress[self.index] = replace(self.progress[self.index], message=message)
 
     def _follow(self, authored: BaseSubtask | EESubtask, sub: BaseSubtask | EESubtask, state: RobotState) -> None:
         """Keep an anchored goal on its object: where it is placed first, the stance (EE) is set; moved more

@@ -308,6 +308,13 @@ class SubtaskProgressOut(BaseModel):
     """The planner found no path to the goal on the current map: the robot holds (skip with /api/run/skip)."""
     blocked: bool = False
     """The base has made no progress for `SequencerParams.stall_s`; `message` names the nearest obstacle."""
+    anchor_object: str | None = None
+    """The named object the subtask's goal is anchored on (null: a world or base-frame goal)."""
+    anchor: str = ""
+    """The anchor as the studio shows it, e.g. 'top of box_a + (0, -0.25, 0.7)'."""
+    anchored_goal: list[float] | None = None
+    """Where the anchored goal is placed now (world x, y, z in m: an EE position, or a base goal at z 0); null
+    while its object cannot be placed (`message` says why) or when not anchored."""
 
 
 class ProgressOut(BaseModel):

@@ -69,7 +69,9 @@ def _subtask_out(p: SubtaskProgress) -> SubtaskProgressOut:
                               elapsed_s=finite_or_none(p.elapsed_s), held_s=finite_or_none(p.held_s),
                               position_error_m=finite_or_none(p.position_error_m),
                               orientation_error_deg=finite_or_none(p.orientation_error_deg), message=p.message,
-                              no_path=p.no_path, blocked=p.blocked is not None)
+                              no_path=p.no_path, blocked=p.blocked is not None, anchor_object=p.anchor_object,
+                              anchor=p.anchor_label,
+                              anchored_goal=None if p.anchored_goal is None else [float(v) for v in p.anchored_goal])
 
 
 def progress_out(snap: Snapshot) -> ProgressOut:

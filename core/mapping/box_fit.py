@@ -91,3 +91,24 @@ def _settle_faces(local: np.ndarray, lo: np.ndarray, hi: np.ndarray, band_m: flo
             hi[a] = faces[0]
         if faces[1] is not None:
             lo[a] = faces[1]
+
+
+def seen_sides(points: np.ndarray, fit: BoxFit, band_m: float = FACE_BAND_M,
+               min_points: int = MIN_FACE_POINTS) -> np.ndarray:
+    """Which side faces of the fitted box its surface points show (2×2 bool: axis x, y of the box; −, + side).
+
+    A side is seen when at least `min_points` points lie within `band_m` of its plane, away from the other side
+    faces and from the top and bottom rims (as `_settle_faces` picks a face's points). An unseen side's position
+    in the fit is only the farthest surface seen there (often the edge of the top), not a face: a box seen from
+    one side is as deep as the part of its top that was seen."""
+    local = (np.asarray(points, float) - fit.centre) @ fit.rotation
+    h = fit.half
+    rim = min(band_m, h[2] / 2)
+    sides = (local[:, 2] < h[2] - rim) & (local[:, 2] > -h[2] + rim)
+    seen = np.zeros((2, 2), dtype=bool)
+    for a in (0, 1):
+        b = 1 - a
+        away = sides & (np.abs(local[:, b]) < h[b] - band_m)
+        for k, sign in enumerate((-1.0, 1.0)):
+            seen[a, k] = int(np.sum(away & (np.abs(sign * local[:, a] - h[a]) <= band_m))) >= min_points
+    return seen

@@ -18,14 +18,15 @@ from enum import Flag, auto
 
 import numpy as np
 
-from core.mapping.box_fit import BoxFit, fit_upright_box
+from core.mapping.box_fit import BoxFit, fit_upright_box, seen_sides
 from core.mapping.completion import Completion
 from core.mapping.footprint import Footprint
 from core.mapping.submap import ObjectSubmap
 from core.types import MappedObject, ObjectStatus, Posterior
 
 REFIT_CHANGE = 0.03
-"""Refit the box's extent when the submap's voxel count changed by more than this fraction."""
+"""Refit the box's extent when the submap's voxel count, or the count of its well-supported voxels, changed by
+more than this fraction."""
 REFIT_YAW_GROWTH = 1.0
 """Refit its yaw (`box_yaw.side_yaw`) only when the submap grew by more than this fraction."""
 
@@ -53,6 +54,8 @@ class _Shape:
     footprint: Footprint
     box_like: bool
     """Every point of the footprint lies within `box_fill_max_m` of the seen surface."""
+    sides_seen: np.ndarray
+    """Which side faces of the fit the well-supported voxels show (`seen_sides`)."""
 
 
 def noise_weight(points_world: np.ndarray, camera_world: np.ndarray, near_m: float = 0.5) -> np.ndarray:
@@ -95,6 +98,10 @@ class TrackedObject:
         self.status = ObjectStatus.ACTIVE
         self._shape: _Shape | None = None
         self._fit_voxels = -1
+        self._fit_solid = -1
+        self._surface_version = 0
+        """Counts integrations and carvings: the well-supported voxels are counted again only when it changed."""
+        self._checked_version = -1
         self._yaw: float | None = None
         self._yaw_voxels = 0
         self._world_points: np.ndarray | None = None
@@ -143,6 +150,8 @@ class TrackedObject:
 
     def _invalidate(self, change: _Change) -> None:
         """Drop what `change` makes stale: the one place that knows which cache depends on what."""
+        if change & (_Change.SURFACE | _Change.CARVED):
+            self._surface_version += 1
         if change & (_Change.SURFACE | _Change.CARVED | _Change.POSE):
             self._world_points = None
         if change & (_Change.SURFACE | _Change.CARVED | _Change.POSE | _Change.SIDES):
@@ -194,19 +203,29 @@ class TrackedObject:
         Voxels holding fewer than a quarter of the median point count are depth-noise outliers of
         the surface and are left out. The extent is refitted when the voxel count changed by more than
         `REFIT_CHANGE` since the last fit, the yaw when it grew by `REFIT_YAW_GROWTH` (or voxels were carved).
+        The well-supported voxels change without the voxel count: the median count grows where the cameras look
+        now, and a surface seen only before (a moved box's old place, after its new place was fused into it)
+        falls under the quarter; so a change of their count by `REFIT_CHANGE` refits too (a box pushed 0.5 m
+        otherwise kept its 1 m extent over both places: the fit stayed as it was when the old place was still
+        well supported).
         """
         n = len(self.submap)
-        if self._shape is not None and abs(n - self._fit_voxels) <= REFIT_CHANGE * max(self._fit_voxels, 1):
+        if self._shape is not None and self._checked_version == self._surface_version:
             return self._shape
-        self._fit_voxels = n
+        self._checked_version = self._surface_version
         solid = self._solid()
+        n_solid = int(solid.sum())
+        if self._shape is not None and abs(n - self._fit_voxels) <= REFIT_CHANGE * max(self._fit_voxels, 1) \
+                and abs(n_solid - self._fit_solid) <= REFIT_CHANGE * max(self._fit_solid, 1):
+            return self._shape
+        self._fit_voxels, self._fit_solid = n, n_solid
         pts = self.submap.points[solid] if solid.sum() >= 4 else self.submap.points
         if self._yaw is None or n > (1.0 + REFIT_YAW_GROWTH) * self._yaw_voxels:
             self._yaw, self._yaw_voxels = None, n
         fit = fit_upright_box(pts, floor_z=-self.T_world_object[2, 3], floor_snap_m=self.floor_snap_m, yaw=self._yaw)
         self._yaw = fit.yaw
         footprint = Footprint.of(pts, self.submap.voxel_m)
-        self._shape = _Shape(fit, footprint, footprint.box_gap(fit) <= self.box_fill_max_m)
+        self._shape = _Shape(fit, footprint, footprint.box_gap(fit) <= self.box_fill_max_m, seen_sides(pts, fit))
         self._invalidate(_Change.REFIT)
         return self._shape
 
@@ -320,4 +339,4 @@ class TrackedObject:
     def snapshot(self) -> MappedObject:
         return MappedObject(id=self.id, pose=self.pose, extent=self.extent.copy(), points=self.world_points.copy(),
                             posterior=self.posterior, status=self.status, observations=self.observations,
-                            last_seen_t=self.last_seen_t)
+                            last_seen_t=self.last_seen_t, sides_seen=self._current_shape().sides_seen.copy())

@@ -1,6 +1,8 @@
-"""Anchored targets in the closed loop (lockstep, MuJoCo, the ground-truth map's objects), measured against the
-simulator's true box: the hand follows a moved box, waits and times out when it is gone without entering
-where it was, and follows a box pushed during the reach; never a collision."""
+"""Anchored targets in the closed loop (lockstep, MuJoCo), measured against the simulator's true box: the hand
+follows a moved box, waits and times out when it is gone without entering where it was, and follows a box pushed
+during the reach; never a collision. The binding, following, waiting and re-checking run on the ground-truth
+map's objects; the accuracy of a pick on a moved box (issue 29, 6(a)) on the object map, through the whole
+sensor model."""
 
 import numpy as np
 import pytest
@@ -25,10 +27,12 @@ subtasks:
 """
 
 
-def runtime(timeout_s: float) -> Runtime:
+def runtime(timeout_s: float, map_kind: str = "ground_truth", seed: int = 0, size: str = "") -> Runtime:
     scene = Scene((Box("box_3", (2.5, 0.0, 0.3)), Box("far", (0.0, 4.0, 0.3))), robot_start=(0.0, 0.0, 0.0))
-    seq = parse_sequence(PICK.format(timeout=timeout_s))
-    return Runtime(RuntimeConfig(map_kind="ground_truth"), scene=scene, sequence=seq)
+    text = PICK.format(timeout=timeout_s)
+    if size:
+        text = text.replace("objects: {box_3: {}}", f"objects: {{box_3: {{size: {size}}}}}")
+    return Runtime(RuntimeConfig(map_kind=map_kind, seed=seed), scene=scene, sequence=parse_sequence(text))  # type: ignore[arg-type]
 
 
 def true_target(rt: Runtime) -> tuple[np.ndarray, np.ndarray]:
@@ -42,7 +46,11 @@ def true_target(rt: Runtime) -> tuple[np.ndarray, np.ndarray]:
 
 
 def ee_error(rt: Runtime) -> tuple[float, float]:
-    T = rt.robot.ee_pose(rt.state.q)
+    """The hand's TRUE pose (the simulator's joints, not the drifting estimate) against the anchored pose on the
+    true box."""
+    backend = rt.backend
+    q = backend.true_state().q if hasattr(backend, "true_state") else rt.state.q  # type: ignore[attr-defined]
+    T = rt.robot.ee_pose(q)
     p, R = true_target(rt)
     angle = np.degrees(np.arccos(np.clip((np.trace(T[:3, :3].T @ R) - 1) / 2, -1, 1)))
     return float(np.linalg.norm(T[:3, 3] - p)), float(angle)
@@ -63,6 +71,34 @@ def test_a_box_moved_half_a_metre_while_the_robot_approaches_is_followed():
     pos, ang = ee_error(rt)
     assert pos <= 0.02 and ang <= 5.0, (pos, ang)
     assert len(rt.world.collisions) == 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("move_m", "seed"), [(0.5, 0), (0.5, 2), (0.0, 1)])
+def test_on_the_object_map_a_pick_on_a_box_of_known_size_ends_on_the_true_box(move_m, seed):
+    """Issue 29, 6(a), perceived: the box moved 0.5 m at 2 s (or not at all), the object map through the whole
+    sensor model (noise, flying pixels, drifting odometry), its size declared with its name. Seen from its front
+    only, the box is mapped 0.49-0.55 m deep, 2-5 cm near (the far strip of its top is seen only in passing, out of
+    the hand camera's view at the goal): the anchor keeps the seen front face and the known depth. On seed 2 the
+    map first fuses the old and new places into one 1.02 m box: the pick does not complete until it settles."""
+    rt = runtime(40.0, map_kind="object", seed=seed, size="[0.6, 0.6, 0.6]")
+    moved: list[float] = []
+    unsettled: list[str] = []
+
+    def move(r: Runtime) -> None:
+        if move_m and not moved and r.time >= 2.0:
+            r.move_box("box_3", (2.5, move_m, 0.3))
+            moved.append(r.time)
+        if "not settled" in r.sequencer.progress[0].message:
+            unsettled.append(r.sequencer.progress[0].message)
+
+    rt.run_lockstep(45.0, on_control=move)
+    assert rt.run_state == RunState.FINISHED, rt.status_line()
+    pos, ang = ee_error(rt)
+    assert pos <= 0.02 and ang <= 5.0, (pos, ang, unsettled[-1:])
+    assert len(rt.require_world().collisions) == 0
+    if seed == 2:
+        assert unsettled, "the fused box was expected on this seed (the map's behaviour changed?)"
 
 
 @pytest.mark.slow

@@ -59,6 +59,38 @@ def test_a_box_found_elsewhere_before_the_old_one_goes_is_a_candidate():
     assert names.view(6.0, [seen("object_4", 2.5, 0.6)], declared).named("box_3").id == "object_4"
 
 
+def test_a_box_moved_out_of_view_found_where_it_overlaps_its_old_place_is_a_candidate():
+    """The bench's lap 2: box_a moved 0.34 m while unseen; the new place is mapped as a new object while the old
+    one is still matched (they overlap) for 3 s before POCD removes it: the new one overlaps where the old one
+    stood, so it is the same box. A box standing beside it (0.6 m, touching) is not."""
+    names = ObjectNames()
+    declared = {"box_3": NamedObject(position=(2.2, 1.3, 0.3))}
+    names.view(0.0, [seen("object_1", 2.2, 1.3)], declared)
+    names.view(24.0, [seen("object_1", 2.2, 1.3, observations=5), seen("object_7", 1.97, 1.03)], declared)
+    names.view(27.6, [seen("object_1", 2.2, 1.3, observations=9), seen("object_7", 1.97, 1.03)], declared)
+    assert names.view(28.0, [seen("object_7", 1.97, 1.03)], declared).named("box_3").id == "object_7"
+    beside = ObjectNames()
+    beside.view(0.0, [seen("object_1", 2.2, 1.3)], declared)
+    beside.view(24.0, [seen("object_1", 2.2, 1.3, observations=5), seen("object_7", 2.2, 0.7)], declared)
+    beside.view(27.6, [seen("object_1", 2.2, 1.3, observations=9), seen("object_7", 2.2, 0.7)], declared)
+    assert beside.view(28.0, [seen("object_7", 2.2, 0.7)], declared).unresolved == {"box_3": "box_3 not in the map"}
+
+
+def test_a_lost_name_does_not_take_another_named_boxs_new_place():
+    """The bench's lap 3 (seed 1, localization on): box_a and box_c both moved; box_a's object was removed just as
+    box_c's new place was mapped anew, 2.7 m away: a unique new candidate of the same extent, but standing where
+    box_c stood, so box_c's. box_a had bound to it and its pick completed 2.8 m from box_a."""
+    names = ObjectNames()
+    declared = {"box_a": NamedObject(position=(1.7, 1.3, 0.3)), "box_c": NamedObject(position=(4.2, 2.0, 0.3))}
+    both = [seen("object_1", 1.7, 1.3), seen("object_2", 4.2, 2.0)]
+    names.view(0.0, both, declared)
+    names.view(47.0, [seen("object_1", 1.7, 1.3, observations=9), seen("object_2", 4.2, 2.0, observations=9)],
+               declared)
+    partial = seen("object_8", 4.35, 1.64, extent=[0.4, 0.45, 0.45])  # first seen in part, 0.35 m from box_c
+    view = names.view(47.5, [seen("object_2", 4.2, 2.0, observations=9), partial], declared)
+    assert view.named("box_a") is None and view.unresolved["box_a"] == "box_a not in the map"
+
+
 def test_yaw_is_continuous_so_faces_keep_their_labels():
     yaw, ext = continuous_yaw(-math.radians(40), math.radians(40), np.array([0.6, 0.4, 0.5]))
     assert math.degrees(yaw) == pytest.approx(50.0) and list(ext) == [0.4, 0.6, 0.5]
@@ -67,3 +99,29 @@ def test_yaw_is_continuous_so_faces_keep_their_labels():
     for k, deg in enumerate([30, 40, -44, -30]):  # the fit wraps from +45° to −45° as the box turns on
         view = names.view(k * 0.1, [seen("object_1", 2.5, 0.0, math.radians(deg))], declared)
     assert math.degrees(view.named("box_3").yaw) == pytest.approx(60.0)
+
+
+def test_a_named_objects_seen_sides_turn_with_its_axes_and_a_size_seen_from_both_sides_is_kept():
+    """The seen sides follow the quarter turns of the yaw (one turn: new x = old y, new y = old −x); an extent
+    measured while both faces of an axis were seen is the name's size; a declared size is matched to the axes."""
+    from app.object_names import matched_size, turn_sides
+
+    sides = np.array([[True, False], [False, True]])  # −x and +y seen
+    np.testing.assert_array_equal(turn_sides(sides, 1), [[False, True], [False, True]])  # ±x: old ±y; +y: old −x
+    np.testing.assert_array_equal(turn_sides(sides, 4), sides)
+    np.testing.assert_allclose(matched_size((0.4, 0.6, 0.5), np.array([0.55, 0.38, 0.5])), [0.6, 0.4, 0.5])
+    names = ObjectNames()
+    declared = {"box_3": NamedObject()}
+    truth = {"box_3": np.array([2.5, 0.0, 0.3])}
+    both = SeenObject("object_1", np.array([2.5, 0.0, 0.3]), 0.0, np.array([0.6, 0.5, 0.6]), 0.9, 1,
+                      np.array([[True, True], [True, False]]))
+    view = names.view(0.0, [both], declared, truth)
+    view = names.view(0.1, [both], declared, truth)
+    assert view.named("box_3").size is not None and view.named("box_3").size[0] == pytest.approx(0.6)
+    assert math.isnan(view.named("box_3").size[1])  # y: one face only, never measured
+    front = SeenObject("object_1", np.array([2.45, 0.0, 0.3]), 0.0, np.array([0.5, 0.5, 0.6]), 0.9, 2,
+                       np.array([[True, False], [True, False]]))
+    now = names.view(0.2, [front], declared, truth).named("box_3")
+    assert now.size[0] == pytest.approx(0.6) and now.sides_seen[0].tolist() == [True, False]
+    given = names.view(0.3, [front], {"box_3": NamedObject(size=(0.6, 0.7, 0.6))}, truth).named("box_3")
+    np.testing.assert_allclose(given.size, [0.6, 0.7, 0.6])

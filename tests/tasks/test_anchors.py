@@ -9,7 +9,7 @@ import pytest
 from core.robot.model import READY_Q
 from core.types import RobotState
 from core.yaml_validation import FileFormatError
-from tasks.anchors import MapObjects, ObjectView, anchor_position, face_point, resolve_pose
+from tasks.anchors import MapObjects, ObjectView, anchor_box, anchor_position, face_point, resolve_pose, unsettled
 from tasks.schema import Anchor, BasePose, EEPose, TaskSequence
 from tasks.sequence_file import parse_sequence, sequence_to_yaml
 from tasks.sequencer import Outcome, Sequencer
@@ -127,3 +127,79 @@ def test_validation_checks_an_anchored_target_where_its_object_is(robot):
     unseen = check_sequence(seq, [], env, anchors={})
     assert {f.rule for f in unseen} == {Rule.ANCHOR} and all(f.severity == Severity.WARNING for f in unseen)
     assert "box_3 is not in the map yet" in unseen[0].message
+
+
+def seen(minus_x: bool, plus_x: bool, minus_y: bool, plus_y: bool) -> np.ndarray:
+    return np.array([[minus_x, plus_x], [minus_y, plus_y]])
+
+
+def test_an_anchor_is_placed_from_the_seen_face_and_the_known_size():
+    """A 0.6 m box seen from its front only is mapped 0.5 m deep, its centre 5 cm near: with its size known, the
+    seen front face stays and the box reaches 0.6 m behind it; turned 90°, the same along world y."""
+    top = Anchor(object="box_3", face="top", offset=(-0.25, 0, 0.7))
+    mapped = dict(position=np.array([2.45, 0.0, 0.3]), extent=np.array([0.5, 0.6, 0.6]))
+    short = ObjectView("o", "box_3", yaw=0.0, sides_seen=seen(True, False, False, False), **mapped)
+    np.testing.assert_allclose(anchor_position(top, short), [2.2, 0.0, 1.3])  # as mapped: 5 cm near
+    known = ObjectView("o", "box_3", yaw=0.0, sides_seen=seen(True, False, False, False),
+                       size=np.array([0.6, 0.6, 0.6]), **mapped)
+    centre, extent = anchor_box(known)
+    np.testing.assert_allclose(centre, [2.5, 0.0, 0.3])
+    np.testing.assert_allclose(extent, [0.6, 0.6, 0.6])
+    np.testing.assert_allclose(anchor_position(top, known), [2.25, 0.0, 1.3])
+    back = ObjectView("o", "box_3", yaw=0.0, sides_seen=seen(False, True, False, False),
+                      size=np.array([0.6, 0.6, 0.6]), **mapped)  # the back seen: the box reaches toward −x
+    np.testing.assert_allclose(anchor_box(back)[0], [2.4, 0.0, 0.3])
+    turned = ObjectView("o", "box_3", np.array([0.0, 2.45, 0.3]), math.pi / 2, np.array([0.5, 0.6, 0.6]),
+                        sides_seen=seen(True, False, False, False), size=np.array([0.6, 0.6, 0.6]))
+    np.testing.assert_allclose(anchor_box(turned)[0], [0.0, 2.5, 0.3], atol=1e-12)
+
+
+@pytest.mark.parametrize("sides", [seen(True, True, False, False), seen(False, False, False, False), None])
+def test_both_faces_or_none_or_a_true_box_keep_the_mapped_box(sides):
+    obj = ObjectView("o", "box_3", np.array([2.45, 0.0, 0.3]), 0.0, np.array([0.5, 0.6, 0.6]), sides_seen=sides,
+                     size=np.array([0.6, 0.6, 0.6]))
+    np.testing.assert_allclose(anchor_box(obj)[0], [2.45, 0.0, 0.3])
+    unknown = ObjectView("o", "box_3", np.array([2.45, 0.0, 0.3]), 0.0, np.array([0.5, 0.6, 0.6]),
+                         sides_seen=seen(True, False, False, False), size=np.array([np.nan, np.nan, np.nan]))
+    np.testing.assert_allclose(anchor_box(unknown)[0], [2.45, 0.0, 0.3])  # no size measured: as mapped
+    longer = ObjectView("o", "box_3", np.array([2.51, 0.0, 0.3]), 0.0, np.array([0.62, 0.6, 0.6]),
+                        sides_seen=seen(True, False, False, False), size=np.array([0.6, 0.6, 0.6]))
+    np.testing.assert_allclose(anchor_box(longer)[0], [2.51, 0.0, 0.3])  # seen over its whole depth: as mapped
+
+
+def test_a_box_mapped_longer_than_its_size_is_not_settled(robot):
+    """The map fused a moved box's old and new places (1.02 m for a 0.6 m box): the goal is followed but the
+    subtask does not complete on it; once the box is mapped its size again, it does; past its timeout it fails
+    with the reason."""
+    size = np.array([0.6, 0.6, 0.6])
+    fused = ObjectView("o", "box_3", np.array([2.5, 0.2, 0.3]), 0.0, np.array([0.6, 1.02, 0.6]), size=size)
+    assert unsettled(fused, 0.15) == "box_3 mapped 1.02 m along its y, 0.60 m known: not settled"
+    assert unsettled(fused, 0.5) == ""
+    assert unsettled(ObjectView("o", "box_3", np.array([2.5, 0.2, 0.3]), 0.0, np.array([0.6, 1.02, 0.6])), 0.15) == ""
+    short = ObjectView("o", "box_3", np.array([4.16, 1.54, 0.3]), 0.0, np.array([0.48, 0.6, 0.6]), size=size,
+                       sides_seen=seen(True, True, True, True))  # shorter is no sign (its far side, or noise)
+    assert unsettled(short, 0.15) == ""
+    s = Sequencer(robot, parse_sequence(GOOD))
+    at_goal = state_at(1.3, 0.2)  # the approach: 0.9 m before the front face
+    s.update(at_goal, np.zeros((0, 3)), 0.0, MapObjects(0.0, (fused,)))
+    s.update(at_goal, np.zeros((0, 3)), 0.1, MapObjects(0.1, (fused,)))
+    assert s.index == 0 and s.progress[0].position_error_m < 0.01
+    assert s.progress[0].message == "box_3 mapped 1.02 m along its y, 0.60 m known: not settled: waiting"
+    late = Sequencer(robot, parse_sequence(GOOD))
+    late.update(at_goal, np.zeros((0, 3)), 0.0, MapObjects(0.0, (fused,)))
+    late.update(at_goal, np.zeros((0, 3)), 999.0, MapObjects(999.0, (fused,)))  # past its timeout: failed, with why
+    assert late.progress[0].outcome == Outcome.FAILED
+    assert late.progress[0].message.startswith("timed out after 120 s (box_3 mapped 1.02 m along its y, 0.60 m known:"
+                                               " not settled; 0.00 m")
+    settled = ObjectView("o", "box_3", np.array([2.5, 0.2, 0.3]), 0.0, np.array([0.6, 0.62, 0.6]), size=size)
+    s.update(at_goal, np.zeros((0, 3)), 0.2, MapObjects(0.2, (settled,)))
+    assert s.index == 1 and s.progress[0].outcome == Outcome.DONE
+
+
+def test_a_named_object_declares_its_size():
+    seq = parse_sequence(GOOD.replace("box_3: {}", "box_3: {size: [0.6, 0.4, 0.6]}"))
+    assert seq.objects["box_3"].size == (0.6, 0.4, 0.6)
+    assert parse_sequence(sequence_to_yaml(seq)) == seq
+    with pytest.raises(FileFormatError) as err:
+        parse_sequence(GOOD.replace("box_3: {}", "box_3: {size: [0.6, 0, 0.6]}"))
+    assert ("objects.box_3.size.1", 2) in {(f, ln) for f, ln, _ in err.value.problems}

@@ -37,3 +37,17 @@ def test_put_takes_an_anchored_sequence_checked_where_its_box_is(api: httpx.Clie
     problems = response.json()["problems"]
     assert [(p["field"], p["line"]) for p in problems] == [("subtasks.0.target", 7)]
     assert "box_a" in problems[0]["message"]
+
+
+def test_progress_tells_where_an_anchored_goal_is_placed(api: httpx.Client, sim_runtime) -> None:
+    """A program driving the robot through the bridge sees what a subtask is anchored on and where its goal is now
+    (box_a's front face 0.9 m before it), as the studio does."""
+    assert api.put("/api/sequence", json={"yaml": ANCHORED}).status_code == 200
+    sim_runtime.run_lockstep(0.3, until_done=False, publish_every=1)
+    subtask = api.get("/api/progress").json()["subtasks"][0]
+    assert subtask["anchor_object"] == "box_a" and subtask["anchor"] == "front of box_a + (-0.9, 0, 0)"
+    box = sim_runtime.require_world().box("box_a")
+    front = box.position[0] - box.size[0] / 2
+    assert subtask["anchored_goal"] is not None
+    x, y, _ = subtask["anchored_goal"]
+    assert abs(x - (front - 0.9)) < 0.05 and abs(y - box.position[1]) < 0.05  # where the map has box_a
