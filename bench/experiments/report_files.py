@@ -132,10 +132,20 @@ def md_table(headers: Sequence[str], rows: Iterable[Sequence]) -> str:
     return "\n".join(lines)
 
 
+def _saved_params_file(out_dir: Path, name: str) -> str | None:
+    """The `--params` file the run saved in `<out_dir>/<name>.json` ran with (None: the experiment's defaults)."""
+    path = out_dir / f"{name}.json"
+    if not path.exists():
+        return None
+    return json.loads(path.read_text(encoding="utf-8")).get("params_file")
+
+
 def write_markdown(out_dir: Path, name: str, title: str, sections: list[tuple[str, str]], quick: bool,
                    options: str = "") -> Path:
     """`<out_dir>/README.md`: title, the command that made it (with `options` beyond --quick) and the run's
     commit and machine (from `<name>.json` beside it), then (heading, body) sections."""
+    params = _saved_params_file(out_dir, name)
+    options = " ".join(o for o in (options, f"--params {params}" if params else "") if o)
     command = f"python -m bench.experiments.{name}{' --quick' if quick else ''}{' ' + options if options else ''}"
     stamp = RunStamp.saved(out_dir, name)
     when = stamp.when.replace("T", " ")
@@ -197,7 +207,9 @@ def finish_experiment(args: argparse.Namespace, name: str, results: list[dict], 
     stamp = RunStamp.saved(args.out, name) if args.report_only else RunStamp.now()
     args.out.mkdir(parents=True, exist_ok=True)
     pngs = draw(args.out)
-    write_json(args.out, name, settings, figures, results, args.quick, stamp=stamp)
+    params = _saved_params_file(args.out, name) if args.report_only else (str(args.params) if args.params else None)
+    write_json(args.out, name, settings, figures, results, args.quick, stamp=stamp,
+               extra={"params_file": params} if params else None)
     write(pngs)
     print("\n".join(f"{k}: {fmt(v)}" for k, v in figures.items() if show(k)))
     return figures
