@@ -43,7 +43,7 @@ def test_progress_tells_where_an_anchored_goal_is_placed(api: httpx.Client, sim_
     """A program driving the robot through the bridge sees what a subtask is anchored on and where its goal is now
     (box_a's front face 0.9 m before it), as the studio does."""
     assert api.put("/api/sequence", json={"yaml": ANCHORED}).status_code == 200
-    sim_runtime.run_lockstep(0.3, until_done=False, publish_every=1)
+    sim_runtime.run_lockstep(1.0, until_done=False, publish_every=1)
     subtask = api.get("/api/progress").json()["subtasks"][0]
     assert subtask["anchor_object"] == "box_a" and subtask["anchor"] == "front of box_a + (-0.9, 0, 0)"
     box = sim_runtime.require_world().box("box_a")
