@@ -34,8 +34,9 @@ class ReadyHand:
     @staticmethod
     def joints(bearing_rad: np.ndarray) -> np.ndarray:
         """Arm joints (K, 6): the ready pose with the shoulder pan turned by each bearing (rad)."""
-        q = np.tile(READY_Q[3:], (len(np.atleast_1d(bearing_rad)), 1))
-        q[:, 0] += np.atleast_1d(bearing_rad)
+        bearing = np.atleast_1d(np.asarray(bearing_rad, float))
+        q = np.tile(READY_Q[3:], (len(bearing), 1))
+        q[:, 0] += bearing
         return q
 
     def bearing_to(self, points_b: np.ndarray) -> np.ndarray:

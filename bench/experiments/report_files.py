@@ -54,16 +54,19 @@ class RunStamp:
     commit: str
     when: str
     machine: dict
+    params_file: str | None = None
+    """The `--params` file of tunables the trials ran with (None: the experiment's defaults)."""
 
     @classmethod
-    def now(cls) -> RunStamp:
-        return cls(git_commit(), dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"), machine())
+    def now(cls, params_file: str | None = None) -> RunStamp:
+        return cls(git_commit(), dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"), machine(), params_file)
 
     @classmethod
     def saved(cls, out_dir: Path, name: str) -> RunStamp:
         """The stamp of the run saved in `<out_dir>/<name>.json` (what `--report-only` reports on)."""
         data = json.loads((out_dir / f"{name}.json").read_text(encoding="utf-8"))
-        return cls(data.get("commit", "unknown"), data.get("when", "unknown"), data.get("machine", {}))
+        return cls(data.get("commit", "unknown"), data.get("when", "unknown"), data.get("machine", {}),
+                   data.get("params_file"))
 
     @property
     def dirty(self) -> bool:
@@ -101,6 +104,7 @@ def write_json(out_dir: Path, name: str, settings: dict, figures: dict, trials: 
         "quick": quick,
         "commit": stamp.commit,
         "machine": stamp.machine,
+        **({"params_file": stamp.params_file} if stamp.params_file else {}),
         "settings": settings,
         "figures": figures,
         "trials": [{k: v for k, v in t.items() if k != "traceback"} for t in trials],
@@ -132,22 +136,13 @@ def md_table(headers: Sequence[str], rows: Iterable[Sequence]) -> str:
     return "\n".join(lines)
 
 
-def _saved_params_file(out_dir: Path, name: str) -> str | None:
-    """The `--params` file the run saved in `<out_dir>/<name>.json` ran with (None: the experiment's defaults)."""
-    path = out_dir / f"{name}.json"
-    if not path.exists():
-        return None
-    return json.loads(path.read_text(encoding="utf-8")).get("params_file")
-
-
 def write_markdown(out_dir: Path, name: str, title: str, sections: list[tuple[str, str]], quick: bool,
                    options: str = "") -> Path:
     """`<out_dir>/README.md`: title, the command that made it (with `options` beyond --quick) and the run's
     commit and machine (from `<name>.json` beside it), then (heading, body) sections."""
-    params = _saved_params_file(out_dir, name)
-    options = " ".join(o for o in (options, f"--params {params}" if params else "") if o)
-    command = f"python -m bench.experiments.{name}{' --quick' if quick else ''}{' ' + options if options else ''}"
     stamp = RunStamp.saved(out_dir, name)
+    options = " ".join(o for o in (options, f"--params {stamp.params_file}" if stamp.params_file else "") if o)
+    command = f"python -m bench.experiments.{name}{' --quick' if quick else ''}{' ' + options if options else ''}"
     when = stamp.when.replace("T", " ")
     cpu, cores = stamp.machine.get("cpu", "unknown CPU"), stamp.machine.get("cores", "?")
     head = [f"# {title}", "",
@@ -204,12 +199,11 @@ def finish_experiment(args: argparse.Namespace, name: str, results: list[dict], 
     """The end every experiment's `main` shares: figures drawn into `args.out` (`draw` returns the PNG names),
     `<name>.json` with the run's stamp (the saved run's for `--report-only`), the markdown (`write(pngs)`),
     and the figures `show` selects printed. Returns the figures."""
-    stamp = RunStamp.saved(args.out, name) if args.report_only else RunStamp.now()
+    stamp = (RunStamp.saved(args.out, name) if args.report_only
+             else RunStamp.now(str(args.params) if args.params else None))
     args.out.mkdir(parents=True, exist_ok=True)
     pngs = draw(args.out)
-    params = _saved_params_file(args.out, name) if args.report_only else (str(args.params) if args.params else None)
-    write_json(args.out, name, settings, figures, results, args.quick, stamp=stamp,
-               extra={"params_file": params} if params else None)
+    write_json(args.out, name, settings, figures, results, args.quick, stamp=stamp)
     write(pngs)
     print("\n".join(f"{k}: {fmt(v)}" for k, v in figures.items() if show(k)))
     return figures

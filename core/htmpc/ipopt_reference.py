@@ -127,8 +127,10 @@ class IpoptReference:
 
         def err(name, k):
             ref_p, ref_R = refs[name]
-            if name in ("base", "posture"):
-                rot = ref_R[0, k] if name == "base" and has_rot[name] else ref_R[:, k]
+            if name == "posture":
+                return self._errors(name, X[:9, k], ref_p[:, k], ref_R[:, k])
+            if name == "base":
+                rot = ref_R[0, k] if has_rot[name] else None
                 return self._errors(name, X[:9, k], ref_p[:, k], rot)
             rot = ca.reshape(ref_R[:, k], 3, 3) if has_rot[name] else None
             return self._errors(name, X[:9, k], ref_p[:, k], rot, ee_in_base)

@@ -30,3 +30,13 @@ def test_report_only_keeps_the_runs_stamp(tmp_path, capsys):
     assert capsys.readouterr().out.strip() == "a: 1.00"
     text = write_markdown(tmp_path, "ex", "Example", [], quick=False).read_text()
     assert "`def5678`" in text and "uncommitted" not in text
+
+
+def test_the_params_file_a_run_used_is_kept_and_named_in_the_command(tmp_path):
+    stamp = RunStamp("def5678", "2026-01-02T03:04:05Z", {"cpu": "Test CPU", "cores": 2}, "tunables.yaml")
+    write_json(tmp_path, "ex", {}, {}, [], quick=False, stamp=stamp)
+    assert RunStamp.saved(tmp_path, "ex").params_file == "tunables.yaml"
+    text = write_markdown(tmp_path, "ex", "Example", [], quick=False).read_text()
+    assert "`python -m bench.experiments.ex --params tunables.yaml`" in text
+    write_json(tmp_path, "plain", {}, {}, [], quick=False, stamp=CLEAN)
+    assert "--params" not in write_markdown(tmp_path, "plain", "Example", [], quick=False).read_text()

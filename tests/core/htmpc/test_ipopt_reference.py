@@ -20,6 +20,7 @@ CASES = {
     "ee within reach": References(order=("ee",), ee=EEReference(np.array([[1.0, 0.3, 0.8]]), TURNED[None])),
     "ee out of reach": References(order=("ee",), ee=EEReference(np.array([[1.6, 0.3, 0.8]]), TURNED[None])),
     "base pose": References(order=("base",), base=BaseReference(np.array([[-0.4, 0.2]]), np.array([0.3]))),
+    "base position": References(order=("base",), base=BaseReference(np.array([[-0.4, 0.2]]))),
     "arm posture": References(order=("posture",), posture=np.array([[0.5, -1.3, 1.9, 0.1, 1.2, 2.9]])),
     "ee in the base frame": References(order=("ee",), ee=EEReference(np.array([[0.7, 0.4, 0.9]]), TURNED[None],
                                                                      "base")),
