@@ -105,6 +105,10 @@ class Localizer:
                 self.filter.predict(self._odom, odom_pose, p.drift_m_per_sqrt_m, p.drift_rad_per_sqrt_rad)
             self._odom = odom_pose.copy()
 
+    def schedule(self, apply_t: float, delta: np.ndarray) -> None:
+        """Queue a correction delta (T_world←odom update) to apply at robot time apply_t (call under `lock`)."""
+        self._pending.append((apply_t, delta))
+
     def apply_due(self, t: float) -> bool:
         """Apply the corrections due by robot time t; whether the estimate changed."""
         changed = False
@@ -169,7 +173,7 @@ class Localizer:
             with self.lock:
                 sigma = self.filter.sigma_xy_m(p.max_range_m / 2)
             surface = self.frozen.update(surface, sigma, self._excluded)
-        ref, target, ref_ms = self._prepared(surface, np.asarray(base_pose[:2], float))
+        ref, target, ref_ms = self.prepared_reference(surface, np.asarray(base_pose[:2], float))
         trusted = ref.object_ids != FLOOR_ID
         if np.sum(scan.in_view(ref.points[trusted], frame, p.max_range_m)) < p.min_trusted_points:
             return self._record(Correction(frame.t, Verdict.NO_REFERENCE, reference_ms=ref_ms))
@@ -196,7 +200,7 @@ class Localizer:
                 surface = self.frozen.surface
             with self.lock:
                 self._evidence.extend(disagreeing)
-            ref, target, more_ms = self._prepared(surface, np.asarray(base_pose[:2], float))
+            ref, target, more_ms = self.prepared_reference(surface, np.asarray(base_pose[:2], float))
             ref_ms += more_ms
             result = registration.register(target, source, frame.T_world_camera, radius, p.max_iterations)
             ms += result.ms
@@ -226,7 +230,7 @@ class Localizer:
                 return replace(base, verdict=Verdict.CHI2, dof=update.dof, nis=update.nis, jump=jump)
             self.filter.P = update.P
             apply_t = frame.t + p.processing_s
-            self._pending.append((apply_t, update.delta))
+            self.schedule(apply_t, update.delta)
             self.status = LocalizationStatus.LOCALIZED
         if dirs.degenerate:
             self.counts[DEGENERATE] += 1
@@ -264,7 +268,7 @@ class Localizer:
             return None
         return tuple(off)
 
-    def _prepared(self, surface: ReferenceSurface | None, centre_xy: np.ndarray
+    def prepared_reference(self, surface: ReferenceSurface | None, centre_xy: np.ndarray
                   ) -> tuple[Reference, registration.Target, float]:
         """The reference and its prepared target, rebuilt only when the surface, the excluded objects or the
         base's 1 m cell change; the ms spent rebuilding (0 when kept)."""

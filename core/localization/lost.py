@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import math
 import threading
-from collections import deque
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -195,9 +194,10 @@ class Searcher(Protocol):
     lost: LostWatch
     frozen: FrozenSurfaces | None
     filter: PoseFilter
-    _pending: deque[tuple[float, np.ndarray]]
 
-    def _prepared(self, surface: ReferenceSurface | None, centre_xy: np.ndarray
+    def schedule(self, apply_t: float, delta: np.ndarray) -> None: ...
+
+    def prepared_reference(self, surface: ReferenceSurface | None, centre_xy: np.ndarray
                   ) -> tuple[Reference, registration.Target, float]: ...
 
 
@@ -214,7 +214,7 @@ def search_frame(loc: Searcher, frame: DepthFrame, base_pose: np.ndarray, surfac
         return {}
     if loc.frozen is not None:
         surface = loc.frozen.surface
-    ref, target, ref_ms = loc._prepared(surface, base_pose[:2])
+    ref, target, ref_ms = loc.prepared_reference(surface, base_pose[:2])
     source, _ = registration.thin(scan.camera_points(frame, p.stride_px, p.max_range_m), p.source_voxel_m)
     result = global_search.search(ref, target, source, frame.T_world_camera, base_pose, p)
     with loc.lock:
@@ -224,6 +224,6 @@ def search_frame(loc: Searcher, frame: DepthFrame, base_pose: np.ndarray, surfac
         delta = se2.compose(result.best.pose, se2.inverse(base_pose))
         loc.lost.resume_delta = delta
         loc.filter.P = np.diag([p.search_sigma_m**2, p.search_sigma_m**2, p.search_sigma_rad**2])
-        loc._pending.append((apply_t, delta))
+        loc.schedule(apply_t, delta)
     return {"delta": delta, "dof": 3, "registration_ms": result.ms, "reference_ms": ref_ms, "apply_t": apply_t,
             "pose": result.best.pose}

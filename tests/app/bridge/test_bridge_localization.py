@@ -142,3 +142,12 @@ def test_a_driver_that_sends_a_localized_pose_is_used_as_it_is(bridge, start_dri
                                      "untrusted": None}
     health = httpx.get(f"{bridge.url}/api/health", timeout=30).json()
     assert health["pose_source"] == "localized" and health["localized_by"] == "driver"
+
+
+def test_the_wire_literal_names_every_pose_source_and_nothing_else() -> None:
+    """The driver-facing `PoseSourceIn` (a plain literal, so a driver needs no enum) is `PoseSource`'s values."""
+    from typing import get_args
+
+    from app.bridge.protocol import PoseSourceIn
+
+    assert set(get_args(PoseSourceIn)) == {source.value for source in PoseSource}
