@@ -534,11 +534,11 @@ class ClosedLoop:
             self.problems.record(ProblemKind.FAULT, self.state.t, reason)
         self.notify(f"fault: {reason}: braking to a stop within the limits; Reset to go on")
 
-    def _braking_plan(self, t: float, why: str = "fault") -> Plan:
+    def _braking_plan(self, t: float, why: str = "fault", reason: PlanReason = PlanReason.FAULT) -> Plan:
         """The commanded plan slowed to a stop along its path within a_max; without one (or when it cannot
-        be followed), every joint ramps down from the last command within a_max."""
+        be followed), every joint ramps down from the last command within a_max. `why` heads the plan's message,
+        `reason` is its `PlanReason` (a fault's brake counts as one; a hold while lost does not)."""
         lim, p = self.robot.limits, self.controller.params
-        reason = PlanReason.FAULT if why == "fault" else PlanReason.NONE
         plan = None
         if self.plan is not None and self.moving:
             plan = brake_along(self.plan, t, lim, p.N, p.dt_s, PlanStatus.STOPPING, f"{why}: braking along the plan",
@@ -704,7 +704,8 @@ class ClosedLoop:
             with self.command_lock, self.lock:
                 self.held_for_search = True
                 if self.fault_reason is None:
-                    self.plan = self._braking_plan(self.state.t, "localization lost: holding the base")
+                    self.plan = self._braking_plan(self.state.t, "localization lost: holding the base",
+                                                    PlanReason.NONE)
                     self._pending_plans.clear()
                 self._untrusted = False  # a new untrusted episode, whatever came before: `watch_health` records it
         elif not lost and self.held_for_search:
