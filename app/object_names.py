@@ -6,10 +6,13 @@ its new pose), so a bound name simply follows its id. When POCD removes the obje
 the name is lost and re-binds only to a *unique* candidate: a live, unnamed object of the same extent (within
 the map's association gate, x and y either way round) first mapped no earlier than `anchor_candidate_margin_s`
 before the lost object was last observed, or standing where the lost object stood (the same box moved out of
-view: two boxes cannot overlap), and not standing where another named object stood (that one's box, moved);
-with several, the name waits ("box_3: 2 candidates"), with none
-"box_3 not in the map". A name never bound binds to the object nearest to where it was given (the sequence's
-`objects`), or in simulation to where its scene box is, within `anchor_bind_radius_m`.
+view: two boxes cannot overlap), and never one that may be another named box: standing where that one stands
+or stood, or nearer to it than to where the lost object stood (`_rebind`); with several, the name waits
+("box_3: 2 candidates"), with none "box_3 not in the map". "Where a box stood" is its footprint at its known size
+(declared, else measured from both sides, else as mapped): a box is often mapped smaller than it is (0.5 m for a
+0.6 m box seen from one side), and a new object is often a partial view. A name never bound binds to the object
+nearest to where it was given (the sequence's `objects`), or in simulation to where its scene box is, within
+`anchor_bind_radius_m`.
 
 The yaw a name sees is continuous from its binding: the box fit keeps yaw within ±45°, so the raw yaw jumps
 by 90° as a box turns; it is unwrapped by quarter turns toward the previous one (x and y extents swapped on
@@ -30,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from app.footprint_overlap import overlap_depth
 from app.runtime.ground_truth_map import GroundTruthMap
 from core.mapping.world_map import WorldMap
 from core.params import MappingParams, SequencerParams
@@ -130,6 +134,7 @@ class ObjectNames:
         self.gate_m = (mapping or MappingParams()).association_gate_m
         self._bindings: dict[str, _Binding] = {}
         self._first_seen: dict[str, float] = {}
+        self._declared: Mapping[str, NamedObject] = {}
 
     def name(self, name: str, obj: SeenObject, t: float) -> None:
         """The operator names `obj` (any earlier name of it is dropped)."""
@@ -148,6 +153,7 @@ class ObjectNames:
         """Bind, follow and re-bind every name in `names` (`truth`: scene box id → true centre, simulation
         only, for names never bound) and return the objects as tasks/ sees them."""
         live = {o.id: o for o in objects}
+        self._declared = names
         for oid in live:
             self._first_seen.setdefault(oid, t)
         unresolved: dict[str, str] = {}
@@ -177,6 +183,8 @@ class ObjectNames:
             self._follow(b, live[b.object_id], t)
             return ""
         if b.object_id is not None:  # removed from the map (POCD) or merged into another object
+            log.info("%s lost: %s is no longer in the map (last at %s)", name, b.object_id,
+                     None if b.position is None else np.round(b.position[:2], 2).tolist())
             b.object_id, b.lost = None, True
         taken = {x.object_id for x in self._bindings.values() if x.object_id is not None}
         free = [o for o in live.values() if o.id not in taken]
@@ -207,33 +215,69 @@ class ObjectNames:
     def _rebind(self, name: str, b: _Binding, free: list[SeenObject], t: float) -> str:
         since = b.last_seen_t - self.params.anchor_candidate_margin_s
         extent = b.extent if b.extent is not None else np.zeros(3)
-        others = [x for n, x in self._bindings.items() if n != name]
-        candidates = [o for o in free if same_extent(o.extent, extent, self.gate_m)
-                      and (self._first_seen.get(o.id, t) >= since or self._overlaps(b, o))
-                      and not any(self._overlaps(x, o) for x in others)]
+        others = {n: x for n, x in self._bindings.items() if n != name and x.position is not None}
+        candidates = []
+        for o in free:
+            if not same_extent(o.extent, extent, self.gate_m):
+                continue
+            new, here = self._first_seen.get(o.id, t) >= since, self._overlaps(name, b, o)
+            theirs = self._claimed_by(name, b, o, others)
+            log.debug("%s: %s at %s: new %s, where it stood %s, another's %s", name, o.id,
+                      np.round(o.position[:2], 2).tolist(), new, here, theirs or "-")
+            if (new or here) and not theirs:
+                candidates.append(o)
         if not candidates:
             return f"{name} not in the map"
         if len(candidates) > 1:
             return f"{name}: {len(candidates)} candidates"
         o = candidates[0]
         yaw, ext = continuous_yaw(o.yaw, b.yaw, o.extent)
-        log.info("%s re-bound to %s", name, o.id)
+        moved = math.nan if b.position is None else float(np.linalg.norm(o.position[:2] - b.position[:2]))
+        log.info("%s re-bound to %s at %s, %.2f m from where it stood", name, o.id,
+                 np.round(o.position[:2], 2).tolist(), moved)
         self._bindings[name] = _Binding(o.id, yaw, ext, o.observations, t, sides_seen=turn_sides(
             o.sides_seen, quarter_turns(o.yaw, b.yaw)), measured=b.measured,  # the same box: its size stays
             position=o.position.copy())
         return ""
 
-    def _overlaps(self, b: _Binding, o: SeenObject) -> bool:
-        """Does `o` stand where the binding's object stood (centres closer than that box's smaller side less
-        `anchor_overlap_margin_m`)? Two boxes cannot stand in one place: it is the same box, moved while out of
-        view. Such a box is mapped as a new object while the old one is still matched (the two overlap) until
-        POCD removes it, so it is older than the `anchor_candidate_margin_s` window allows (measured on the
-        bench's lap 2: box_a moved 0.34 m, the new object first mapped 3.3 s before the old one was last
-        observed, and the name waited 'not in the map' until the pick timed out)."""
+    def _claimed_by(self, name: str, b: _Binding, o: SeenObject, others: Mapping[str, _Binding]) -> str:
+        """The other named box `o` may be ('' if none): it stands where that one stands (or stood, if lost), or
+        nearer to it than to where `name`'s object stood. Boxes here are identical, and a box moved while unseen
+        is found near where it was: on the bench's lap 3 (seed 1, localization on) box_a's object was removed as
+        box_c's new place was first mapped, 2.7 m from box_a and 0.36 m from box_c, which was mapped 0.5 m wide
+        (seen from one side) and its old object not yet removed; box_a took it and its pick completed 2.8 m off."""
+        if b.position is None:
+            return ""
+        own = float(np.linalg.norm(o.position[:2] - b.position[:2]))
+        for other, x in others.items():
+            assert x.position is not None
+            if self._overlaps(other, x, o) or float(np.linalg.norm(o.position[:2] - x.position[:2])) < own:
+                return other
+        return ""
+
+    def known_size(self, name: str, b: _Binding) -> np.ndarray:
+        """The full size of `name`'s box along its binding's axes: declared, else measured where both faces of an
+        axis were seen, else as mapped."""
+        mapped = np.asarray(b.extent if b.extent is not None else np.zeros(3), float)
+        declared = self._declared.get(name)
+        if declared is not None and declared.size is not None:
+            return matched_size(declared.size, mapped)
+        return np.where(np.isfinite(b.measured), b.measured, mapped)
+
+    def _overlaps(self, name: str, b: _Binding, o: SeenObject) -> bool:
+        """Does `o` stand where `name`'s box stands or stood: the two footprints, both at that box's known size
+        (`o` may be a partial view of it), overlap by more than `anchor_overlap_margin_m`? Two boxes cannot stand in
+        one place: it is the same box, moved while out of view. Such a box is mapped as a new object while the old
+        one is still matched (the two overlap) until POCD removes it, so it is older than the
+        `anchor_candidate_margin_s` window allows (the bench's lap 2, seed 3: box_c moved 0.42 m while unseen, its
+        new place first mapped at 24.4 s, the old object matched at E[v] 1.0 until 27.7 s and removed at 29.4 s; the
+        centres 0.48 m apart, 0.24 and 0.41 m along the box's axes: a circle test at the smaller side less the
+        margin, 0.44 m, missed it and the name waited 'box_c not in the map' until its approach timed out)."""
         if b.position is None or b.extent is None:
             return False
-        side = float(np.min(b.extent[:2]))  # the box that stood there: a new object is often a partial view
-        return float(np.linalg.norm(o.position[:2] - b.position[:2])) < side - self.params.anchor_overlap_margin_m
+        size = self.known_size(name, b)
+        depth = overlap_depth(b.position, b.yaw, size, o.position, o.yaw, size)
+        return depth > self.params.anchor_overlap_margin_m
 
 
 def map_objects(names: ObjectNames, world_map: WorldMap, sequence: TaskSequence, world: SimWorld | None,
