@@ -34,7 +34,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from app.footprint_overlap import overlap_depth
+from app.object_label import shown_id
 from app.runtime.ground_truth_map import GroundTruthMap
+from core.errors import StudioError
 from core.mapping.world_map import WorldMap
 from core.params import MappingParams, SequencerParams
 from core.sim.world import SimWorld
@@ -43,6 +45,18 @@ from tasks.anchors import MapObjects, ObjectView
 from tasks.schema import NamedObject, TaskSequence
 
 log = logging.getLogger(__name__)
+
+
+class UnknownObjectError(StudioError, LookupError):
+    """No object of that id in the map (or no object of that name)."""
+
+
+class NameTakenError(StudioError, ValueError):
+    """The name is bound to another object, or the object has another name."""
+
+
+class NameInUseError(StudioError, ValueError):
+    """A name that anchored subtasks use cannot be taken away."""
 
 
 @dataclass(frozen=True)
@@ -85,6 +99,8 @@ class _Binding:
     """Its extent along each axis the last time both side faces of that axis were seen (NaN: never)."""
     position: np.ndarray | None = None
     """Where its object was last (world, m)."""
+    size: tuple[float, float, float] | None = None
+    """The full size the operator declared when naming it (m; None: as the sequence declares, if it does)."""
 
 
 def quarter_turns(raw: float, previous: float) -> int:
@@ -136,13 +152,29 @@ class ObjectNames:
         self._first_seen: dict[str, float] = {}
         self._declared: Mapping[str, NamedObject] = {}
 
-    def name(self, name: str, obj: SeenObject, t: float) -> None:
-        """The operator names `obj` (any earlier name of it is dropped)."""
+    def name(self, name: str, obj: SeenObject, t: float, size: tuple[float, float, float] | None = None) -> None:
+        """The operator names `obj`, with its full `size` (m) if known: it holds at once, also while a run keeps
+        its own copy of the sequence (any earlier name of it is dropped)."""
         for other, b in self._bindings.items():
             if b.object_id == obj.id and other != name:
                 b.object_id, b.lost = None, True
         self._bindings[name] = _Binding(obj.id, obj.yaw, obj.extent.copy(), obj.observations, t,
-                                        sides_seen=obj.sides_seen, position=obj.position.copy())
+                                        sides_seen=obj.sides_seen, position=obj.position.copy(), size=size)
+
+    def check_free(self, name: str, object_id: str) -> None:
+        """Raise `NameTakenError` unless `name` may name `object_id`: the name is not bound to another object now
+        (a lost name may be given again) and the object has no other name."""
+        bound = self.bound()
+        holder = bound.get(name)
+        if holder is not None and holder != object_id:
+            raise NameTakenError(f"{name} names {shown_id(holder)}: unname it first")
+        other = next((n for n, oid in bound.items() if oid == object_id and n != name), None)
+        if other is not None:
+            raise NameTakenError(f"{shown_id(object_id)} is named {other}: unname it first")
+
+    def forget(self, name: str) -> None:
+        """Drop `name` and its binding."""
+        self._bindings.pop(name, None)
 
     def bound(self) -> dict[str, str]:
         """Name → object id of the names bound now."""
@@ -170,7 +202,7 @@ class ObjectNames:
                                         sides_seen=o.sides_seen))
                 continue
             extent = np.asarray(b.extent, float)
-            declared = names[name].size if name in names else None
+            declared = self._declared_size(name, b)
             size = matched_size(declared, extent) if declared is not None else b.measured
             views.append(ObjectView(oid, name, o.position.copy(), b.yaw, extent, o.consistency,
                                     sides_seen=b.sides_seen, size=None if np.isnan(size[:2]).all() else size))
@@ -237,7 +269,7 @@ class ObjectNames:
                  np.round(o.position[:2], 2).tolist(), moved)
         self._bindings[name] = _Binding(o.id, yaw, ext, o.observations, t, sides_seen=turn_sides(
             o.sides_seen, quarter_turns(o.yaw, b.yaw)), measured=b.measured,  # the same box: its size stays
-            position=o.position.copy())
+            position=o.position.copy(), size=b.size)
         return ""
 
     def _claimed_by(self, name: str, b: _Binding, o: SeenObject, others: Mapping[str, _Binding]) -> str:
@@ -255,13 +287,18 @@ class ObjectNames:
                 return other
         return ""
 
+    def _declared_size(self, name: str, b: _Binding) -> tuple[float, float, float] | None:
+        """The size declared for `name`: given with the name, else in the sequence's `objects`."""
+        named = self._declared.get(name)
+        return b.size if b.size is not None else None if named is None else named.size
+
     def known_size(self, name: str, b: _Binding) -> np.ndarray:
         """The full size of `name`'s box along its binding's axes: declared, else measured where both faces of an
         axis were seen, else as mapped."""
         mapped = np.asarray(b.extent if b.extent is not None else np.zeros(3), float)
-        declared = self._declared.get(name)
-        if declared is not None and declared.size is not None:
-            return matched_size(declared.size, mapped)
+        declared = self._declared_size(name, b)
+        if declared is not None:
+            return matched_size(declared, mapped)
         return np.where(np.isfinite(b.measured), b.measured, mapped)
 
     def _overlaps(self, name: str, b: _Binding, o: SeenObject) -> bool:
