@@ -3,8 +3,8 @@ objects, handed to tasks/ as `tasks.anchors.MapObjects` every control period.
 
 The map keeps an object's id through re-association and relocation (a box pushed 20–50 cm is registered at
 its new pose), so a bound name simply follows its id. When POCD removes the object (moved farther, or gone),
-the name is lost and re-binds only to a *unique* candidate: a live, unnamed object of the same extent (within
-the map's association gate, x and y either way round) first mapped no earlier than `anchor_candidate_margin_s`
+the name is lost and re-binds only to a *unique* candidate: a live, unnamed object of the box's known size
+(within the map's association gate, x and y either way round) first mapped no earlier than `anchor_candidate_margin_s`
 before the lost object was last observed, or standing where the lost object stood (the same box moved out of
 view: two boxes cannot overlap), and never one that may be another named box: standing where that one stands
 or stood, or nearer to it than to where the lost object stood (`_rebind`); with several, the name waits
@@ -246,7 +246,7 @@ class ObjectNames:
 
     def _rebind(self, name: str, b: _Binding, free: list[SeenObject], t: float) -> str:
         since = b.last_seen_t - self.params.anchor_candidate_margin_s
-        extent = b.extent if b.extent is not None else np.zeros(3)
+        extent = self.known_size(name, b)  # not as last mapped: a fused box was mapped 1.19 m long before removal
         others = {n: x for n, x in self._bindings.items() if n != name and x.position is not None}
         candidates = []
         for o in free:
@@ -294,7 +294,10 @@ class ObjectNames:
 
     def known_size(self, name: str, b: _Binding) -> np.ndarray:
         """The full size of `name`'s box along its binding's axes: declared, else measured where both faces of an
-        axis were seen, else as mapped."""
+        axis were seen, else as mapped. Re-binding compares candidates with it: the bench's lap 2 (seed 4,
+        localization on) mapped box_a 1.19 m long (its old and new places fused) just before POCD removed it, and
+        its new object (0.37 x 0.58 m seen, 8 cm from where it stood) failed the extent gate against that, so the
+        name waited 'box_a not in the map' until its approach timed out."""
         mapped = np.asarray(b.extent if b.extent is not None else np.zeros(3), float)
         declared = self._declared_size(name, b)
         if declared is not None:

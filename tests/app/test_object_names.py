@@ -144,6 +144,22 @@ def test_a_lost_name_never_takes_an_object_nearer_another_named_box(size):
     assert named(view, "box_c").id == "object_2"
 
 
+def test_candidates_are_compared_with_the_boxs_size_not_a_fused_extent():
+    """The bench's lap 2 (seed 4, localization on), the map's numbers: box_a (declared 0.6 m) was mapped 1.19 m long,
+    its old and new places fused, when POCD removed it; its new object, seen 0.37 x 0.58 m, 8 cm from where it
+    stood, failed the extent gate against 1.19 m and the name waited 'box_a not in the map' until its approach
+    timed out. Against the declared size it is the unique candidate."""
+    names = ObjectNames()
+    declared = {"box_a": NamedObject(size=(0.6, 0.6, 0.6)), "box_c": NamedObject(size=(0.6, 0.6, 0.6))}
+    truth = {"box_a": np.array([2.58, 1.16, 0.3]), "box_c": np.array([4.21, 1.55, 0.3])}
+    c = seen("object_2", 4.32, 1.68, extent=[0.78, 0.61, 0.62])
+    names.view(0.0, [seen("object_1", 2.48, 1.25, extent=[0.61, 0.6, 0.6]), c], declared, truth)
+    names.view(28.5, [seen("object_1", 2.48, 1.25, observations=9, extent=[1.19, 0.55, 0.61]), c], declared, truth)
+    names.view(29.3, [c, seen("object_6", 2.54, 1.21, extent=[0.32, 0.45, 0.57])], declared, truth)
+    view = names.view(30.4, [c, seen("object_6", 2.56, 1.28, extent=[0.37, 0.58, 0.6])], declared, truth)
+    assert named(view, "box_a").id == "object_6"
+
+
 def test_yaw_is_continuous_so_faces_keep_their_labels():
     yaw, ext = continuous_yaw(-math.radians(40), math.radians(40), np.array([0.6, 0.4, 0.5]))
     assert math.degrees(yaw) == pytest.approx(50.0) and list(ext) == [0.4, 0.6, 0.5]
