@@ -3,13 +3,16 @@ objects, handed to tasks/ as `tasks.anchors.MapObjects` every control period.
 
 The map keeps an object's id through re-association and relocation (a box pushed 20–50 cm is registered at
 its new pose), so a bound name simply follows its id. When POCD removes the object (moved farther, or gone),
-the name is lost and re-binds only to a *unique* candidate: a live, unnamed object of the same extent (within
-the map's association gate, x and y either way round) first mapped no earlier than `anchor_candidate_margin_s`
+the name is lost and re-binds only to a *unique* candidate: a live, unnamed object of the box's known size
+(within the map's association gate, x and y either way round) first mapped no earlier than `anchor_candidate_margin_s`
 before the lost object was last observed, or standing where the lost object stood (the same box moved out of
-view: two boxes cannot overlap), and not standing where another named object stood (that one's box, moved);
-with several, the name waits ("box_3: 2 candidates"), with none
-"box_3 not in the map". A name never bound binds to the object nearest to where it was given (the sequence's
-`objects`), or in simulation to where its scene box is, within `anchor_bind_radius_m`.
+view: two boxes cannot overlap), and never one that may be another named box: standing where that one stands
+or stood, or nearer to it than to where the lost object stood (`_rebind`); with several, the name waits
+("box_3: 2 candidates"), with none "box_3 not in the map". "Where a box stood" is its footprint at its known size
+(declared, else measured from both sides, else as mapped): a box is often mapped smaller than it is (0.5 m for a
+0.6 m box seen from one side), and a new object is often a partial view. A name never bound binds to the object
+nearest to where it was given (the sequence's `objects`), or in simulation to where its scene box is, within
+`anchor_bind_radius_m`.
 
 The yaw a name sees is continuous from its binding: the box fit keeps yaw within ±45°, so the raw yaw jumps
 by 90° as a box turns; it is unwrapped by quarter turns toward the previous one (x and y extents swapped on
@@ -30,7 +33,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from app.footprint_overlap import overlap_depth
+from app.object_label import shown_id
 from app.runtime.ground_truth_map import GroundTruthMap
+from core.errors import StudioError
 from core.mapping.world_map import WorldMap
 from core.params import MappingParams, SequencerParams
 from core.sim.world import SimWorld
@@ -39,6 +45,18 @@ from tasks.anchors import MapObjects, ObjectView
 from tasks.schema import NamedObject, TaskSequence
 
 log = logging.getLogger(__name__)
+
+
+class UnknownObjectError(StudioError, LookupError):
+    """No object of that id in the map (or no object of that name)."""
+
+
+class NameTakenError(StudioError, ValueError):
+    """The name is bound to another object, or the object has another name."""
+
+
+class NameInUseError(StudioError, ValueError):
+    """A name that anchored subtasks use cannot be taken away."""
 
 
 @dataclass(frozen=True)
@@ -81,6 +99,8 @@ class _Binding:
     """Its extent along each axis the last time both side faces of that axis were seen (NaN: never)."""
     position: np.ndarray | None = None
     """Where its object was last (world, m)."""
+    size: tuple[float, float, float] | None = None
+    """The full size the operator declared when naming it (m; None: as the sequence declares, if it does)."""
 
 
 def quarter_turns(raw: float, previous: float) -> int:
@@ -130,14 +150,31 @@ class ObjectNames:
         self.gate_m = (mapping or MappingParams()).association_gate_m
         self._bindings: dict[str, _Binding] = {}
         self._first_seen: dict[str, float] = {}
+        self._declared: Mapping[str, NamedObject] = {}
 
-    def name(self, name: str, obj: SeenObject, t: float) -> None:
-        """The operator names `obj` (any earlier name of it is dropped)."""
+    def name(self, name: str, obj: SeenObject, t: float, size: tuple[float, float, float] | None = None) -> None:
+        """The operator names `obj`, with its full `size` (m) if known: it holds at once, also while a run keeps
+        its own copy of the sequence (any earlier name of it is dropped)."""
         for other, b in self._bindings.items():
             if b.object_id == obj.id and other != name:
                 b.object_id, b.lost = None, True
         self._bindings[name] = _Binding(obj.id, obj.yaw, obj.extent.copy(), obj.observations, t,
-                                        sides_seen=obj.sides_seen, position=obj.position.copy())
+                                        sides_seen=obj.sides_seen, position=obj.position.copy(), size=size)
+
+    def check_free(self, name: str, object_id: str) -> None:
+        """Raise `NameTakenError` unless `name` may name `object_id`: the name is not bound to another object now
+        (a lost name may be given again) and the object has no other name."""
+        bound = self.bound()
+        holder = bound.get(name)
+        if holder is not None and holder != object_id:
+            raise NameTakenError(f"{name} names {shown_id(holder)}: unname it first")
+        other = next((n for n, oid in bound.items() if oid == object_id and n != name), None)
+        if other is not None:
+            raise NameTakenError(f"{shown_id(object_id)} is named {other}: unname it first")
+
+    def forget(self, name: str) -> None:
+        """Drop `name` and its binding."""
+        self._bindings.pop(name, None)
 
     def bound(self) -> dict[str, str]:
         """Name → object id of the names bound now."""
@@ -148,6 +185,7 @@ class ObjectNames:
         """Bind, follow and re-bind every name in `names` (`truth`: scene box id → true centre, simulation
         only, for names never bound) and return the objects as tasks/ sees them."""
         live = {o.id: o for o in objects}
+        self._declared = names
         for oid in live:
             self._first_seen.setdefault(oid, t)
         unresolved: dict[str, str] = {}
@@ -164,7 +202,7 @@ class ObjectNames:
                                         sides_seen=o.sides_seen))
                 continue
             extent = np.asarray(b.extent, float)
-            declared = names[name].size if name in names else None
+            declared = self._declared_size(name, b)
             size = matched_size(declared, extent) if declared is not None else b.measured
             views.append(ObjectView(oid, name, o.position.copy(), b.yaw, extent, o.consistency,
                                     sides_seen=b.sides_seen, size=None if np.isnan(size[:2]).all() else size))
@@ -177,6 +215,8 @@ class ObjectNames:
             self._follow(b, live[b.object_id], t)
             return ""
         if b.object_id is not None:  # removed from the map (POCD) or merged into another object
+            log.info("%s lost: %s is no longer in the map (last at %s)", name, b.object_id,
+                     None if b.position is None else np.round(b.position[:2], 2).tolist())
             b.object_id, b.lost = None, True
         taken = {x.object_id for x in self._bindings.values() if x.object_id is not None}
         free = [o for o in live.values() if o.id not in taken]
@@ -206,34 +246,78 @@ class ObjectNames:
 
     def _rebind(self, name: str, b: _Binding, free: list[SeenObject], t: float) -> str:
         since = b.last_seen_t - self.params.anchor_candidate_margin_s
-        extent = b.extent if b.extent is not None else np.zeros(3)
-        others = [x for n, x in self._bindings.items() if n != name]
-        candidates = [o for o in free if same_extent(o.extent, extent, self.gate_m)
-                      and (self._first_seen.get(o.id, t) >= since or self._overlaps(b, o))
-                      and not any(self._overlaps(x, o) for x in others)]
+        extent = self.known_size(name, b)  # not as last mapped: a fused box was mapped 1.19 m long before removal
+        others = {n: x for n, x in self._bindings.items() if n != name and x.position is not None}
+        candidates = []
+        for o in free:
+            if not same_extent(o.extent, extent, self.gate_m):
+                continue
+            new, here = self._first_seen.get(o.id, t) >= since, self._overlaps(name, b, o)
+            theirs = self._claimed_by(name, b, o, others)
+            log.debug("%s: %s at %s: new %s, where it stood %s, another's %s", name, o.id,
+                      np.round(o.position[:2], 2).tolist(), new, here, theirs or "-")
+            if (new or here) and not theirs:
+                candidates.append(o)
         if not candidates:
             return f"{name} not in the map"
         if len(candidates) > 1:
             return f"{name}: {len(candidates)} candidates"
         o = candidates[0]
         yaw, ext = continuous_yaw(o.yaw, b.yaw, o.extent)
-        log.info("%s re-bound to %s", name, o.id)
+        moved = math.nan if b.position is None else float(np.linalg.norm(o.position[:2] - b.position[:2]))
+        log.info("%s re-bound to %s at %s, %.2f m from where it stood", name, o.id,
+                 np.round(o.position[:2], 2).tolist(), moved)
         self._bindings[name] = _Binding(o.id, yaw, ext, o.observations, t, sides_seen=turn_sides(
             o.sides_seen, quarter_turns(o.yaw, b.yaw)), measured=b.measured,  # the same box: its size stays
-            position=o.position.copy())
+            position=o.position.copy(), size=b.size)
         return ""
 
-    def _overlaps(self, b: _Binding, o: SeenObject) -> bool:
-        """Does `o` stand where the binding's object stood (centres closer than that box's smaller side less
-        `anchor_overlap_margin_m`)? Two boxes cannot stand in one place: it is the same box, moved while out of
-        view. Such a box is mapped as a new object while the old one is still matched (the two overlap) until
-        POCD removes it, so it is older than the `anchor_candidate_margin_s` window allows (measured on the
-        bench's lap 2: box_a moved 0.34 m, the new object first mapped 3.3 s before the old one was last
-        observed, and the name waited 'not in the map' until the pick timed out)."""
+    def _claimed_by(self, name: str, b: _Binding, o: SeenObject, others: Mapping[str, _Binding]) -> str:
+        """The other named box `o` may be ('' if none): it stands where that one stands (or stood, if lost), or
+        nearer to it than to where `name`'s object stood. Boxes here are identical, and a box moved while unseen
+        is found near where it was: on the bench's lap 3 (seed 1, localization on) box_a's object was removed as
+        box_c's new place was first mapped, 2.7 m from box_a and 0.36 m from box_c, which was mapped 0.5 m wide
+        (seen from one side) and its old object not yet removed; box_a took it and its pick completed 2.8 m off."""
+        if b.position is None:
+            return ""
+        own = float(np.linalg.norm(o.position[:2] - b.position[:2]))
+        for other, x in others.items():
+            assert x.position is not None
+            if self._overlaps(other, x, o) or float(np.linalg.norm(o.position[:2] - x.position[:2])) < own:
+                return other
+        return ""
+
+    def _declared_size(self, name: str, b: _Binding) -> tuple[float, float, float] | None:
+        """The size declared for `name`: given with the name, else in the sequence's `objects`."""
+        named = self._declared.get(name)
+        return b.size if b.size is not None else None if named is None else named.size
+
+    def known_size(self, name: str, b: _Binding) -> np.ndarray:
+        """The full size of `name`'s box along its binding's axes: declared, else measured where both faces of an
+        axis were seen, else as mapped. Re-binding compares candidates with it: the bench's lap 2 (seed 4,
+        localization on) mapped box_a 1.19 m long (its old and new places fused) just before POCD removed it, and
+        its new object (0.37 x 0.58 m seen, 8 cm from where it stood) failed the extent gate against that, so the
+        name waited 'box_a not in the map' until its approach timed out."""
+        mapped = np.asarray(b.extent if b.extent is not None else np.zeros(3), float)
+        declared = self._declared_size(name, b)
+        if declared is not None:
+            return matched_size(declared, mapped)
+        return np.where(np.isfinite(b.measured), b.measured, mapped)
+
+    def _overlaps(self, name: str, b: _Binding, o: SeenObject) -> bool:
+        """Does `o` stand where `name`'s box stands or stood: the two footprints, both at that box's known size
+        (`o` may be a partial view of it), overlap by more than `anchor_overlap_margin_m`? Two boxes cannot stand in
+        one place: it is the same box, moved while out of view. Such a box is mapped as a new object while the old
+        one is still matched (the two overlap) until POCD removes it, so it is older than the
+        `anchor_candidate_margin_s` window allows (the bench's lap 2, seed 3: box_c moved 0.42 m while unseen, its
+        new place first mapped at 24.4 s, the old object matched at E[v] 1.0 until 27.7 s and removed at 29.4 s; the
+        centres 0.48 m apart, 0.24 and 0.41 m along the box's axes: a circle test at the smaller side less the
+        margin, 0.44 m, missed it and the name waited 'box_c not in the map' until its approach timed out)."""
         if b.position is None or b.extent is None:
             return False
-        side = float(np.min(b.extent[:2]))  # the box that stood there: a new object is often a partial view
-        return float(np.linalg.norm(o.position[:2] - b.position[:2])) < side - self.params.anchor_overlap_margin_m
+        size = self.known_size(name, b)
+        depth = overlap_depth(b.position, b.yaw, size, o.position, o.yaw, size)
+        return depth > self.params.anchor_overlap_margin_m
 
 
 def map_objects(names: ObjectNames, world_map: WorldMap, sequence: TaskSequence, world: SimWorld | None,

@@ -498,8 +498,8 @@ class SequencerParams:
     places after a move (seen: 1.02 m for a 0.6 m box pushed 0.5 m). 2 × a pick's 3 cm tolerance held a lap-1
     pick 0.7 cm from the true box on a 0.67 m box (bench)."""
     anchor_overlap_margin_m: float = 0.15
-    """... or to one that stands where the lost object stood: centres closer than the smaller footprint side less
-    this (0.45 m for 0.6 m boxes; two boxes side by side stand 0.6 m apart, mapped within a few centimetres)."""
+    """... or to one that stands where the lost object stood: the two footprints, at the box's known size, overlap
+    by more than this (m) along every side (two boxes side by side touch, mapped within a few centimetres)."""
 
 
 @dataclass(frozen=True)

@@ -282,3 +282,8 @@ def anchored_poses(sequence: TaskSequence) -> list[tuple[tuple[str | int, ...], 
         if sub.target is not None and sub.target.anchor is not None:
             out.append((("subtasks", i, "target"), sub.target.anchor))
     return out
+
+
+def anchored_on(sequence: TaskSequence, name: str) -> list[int]:
+    """The subtasks (numbered from 1) with a target or waypoint anchored on the object `name`."""
+    return sorted({int(loc[1]) + 1 for loc, a in anchored_poses(sequence) if a.object == name})

@@ -364,6 +364,33 @@ class BoxOut(BaseModel):
     yaw: float
 
 
+class MappedObjectOut(BaseModel):
+    """An object the map sees (with the ground-truth map, a scene box): `id` as the API takes it (`object_4`; a
+    box id), `label` as the studio shows it ('#4'), the operator's `name` (null: unnamed), centre `position` (m),
+    `yaw_deg`, full `extent` (m, along its own axes), E[v] `consistency`, `status`; `size`: its known full size (m)
+    if named (declared, or measured while both faces of an axis were seen; null where unknown)."""
+
+    id: str
+    label: str
+    name: str | None
+    position: list[float]
+    yaw_deg: float
+    extent: list[float]
+    consistency: float
+    status: str
+    size: list[float | None] | None = None
+
+
+class ObjectsOut(BaseModel):
+    """The objects the map sees now, and why a name has no object (`unresolved`: name → reason, e.g. 'box_3 not in
+    the map', 'box_3: 2 candidates')."""
+
+    t: float
+    map_kind: str
+    objects: list[MappedObjectOut]
+    unresolved: dict[str, str] = {}
+
+
 class SceneOut(BaseModel):
     """The simulated scene (only when the runtime simulates)."""
 
@@ -415,6 +442,14 @@ class BoxMoveIn(Message):
 
     position: Annotated[list[Position], Field(min_length=3, max_length=3)]
     yaw: Yaw | None = None
+
+
+class NameIn(Message):
+    """A name for a mapped object (a sequence's `objects` key: a letter or _ first) and its full size (m, along its
+    x, y, z, x and y either way round; omitted: unknown)."""
+
+    name: Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_.-]{0,63}$")]
+    size: Annotated[list[Size], Field(min_length=3, max_length=3)] | None = None
 
 
 class RandomiseIn(Message):

@@ -14,6 +14,8 @@ from app.bridge.protocol import (
     LinkCounters,
     LocalizationOut,
     LocalizedBy,
+    MappedObjectOut,
+    ObjectsOut,
     PlanOut,
     ProgressOut,
     RobotStateOut,
@@ -22,6 +24,7 @@ from app.bridge.protocol import (
     finite_or_none,
 )
 from app.bridge.robot_link import RobotLink
+from app.object_label import shown_id
 from app.runtime.snapshot import Snapshot
 from core.scene import Scene
 from core.types import Plan, PoseSource
@@ -103,3 +106,27 @@ def health_out(link: RobotLink, attachment: RuntimeAttachment | None) -> Health:
         pose_source=None if link.pose_source is None else link.pose_source.value,
         localized_by=None if attachment is None else localized_by(attachment.runtime.closed_loop.localizing,
                                                                    attachment.runtime.closed_loop.pose_source))
+
+
+def objects_out(snap: Snapshot) -> ObjectsOut:
+    """The map's live objects (with the ground-truth map, the scene boxes) with their names, as `/api/objects`
+    lists them."""
+    views = {} if snap.anchors is None else {o.id: o for o in snap.anchors.objects}
+    found: list[tuple[str, np.ndarray, float, np.ndarray, float, str]] = []
+    if snap.map_kind == "ground_truth":
+        found = [(b.id, np.asarray(b.position), b.yaw, np.asarray(b.size), 1.0, "active") for b in snap.boxes]
+    elif snap.object_map is not None:
+        for o in snap.object_map.objects:
+            R = o.pose[:3, :3]
+            found.append((f"object_{o.id}", o.pose[:3, 3], float(np.arctan2(R[1, 0], R[0, 0])), o.extent,
+                          o.consistency, o.status.value))
+    objects = []
+    for oid, position, yaw, extent, consistency, state in found:
+        view = views.get(oid)
+        size = None if view is None or view.size is None else json_array(view.size)
+        objects.append(MappedObjectOut(id=oid, label=shown_id(oid), name=None if view is None else view.name,
+                                       position=[float(v) for v in position], yaw_deg=float(np.degrees(yaw)),
+                                       extent=[float(v) for v in extent], consistency=float(consistency), status=state,
+                                       size=size))
+    unresolved = {} if snap.anchors is None else dict(snap.anchors.unresolved)
+    return ObjectsOut(t=snap.state.t, map_kind=snap.map_kind, objects=objects, unresolved=unresolved)

@@ -10,7 +10,7 @@ from app.bridge.errors import install_error_handlers
 from app.bridge.protocol import PROTOCOL_VERSION, ErrorOut
 from app.bridge.robot_link import RobotLink
 from app.bridge.robot_socket import router as robot_router
-from app.bridge.routes import run, scene, sequence, status
+from app.bridge.routes import objects, run, scene, sequence, status
 
 DESCRIPTION = """Hardware bridge of Perceptive HTMPC Studio.
 
@@ -26,6 +26,6 @@ def create_app(token: Token, link: RobotLink, robot: BridgeRobot) -> FastAPI:
     app.state.token, app.state.link, app.state.robot = token, link, robot
     app.state.attachment = None
     install_error_handlers(app)
-    for router in (status.router, run.router, sequence.router, scene.router, robot_router):
+    for router in (status.router, run.router, sequence.router, scene.router, objects.router, robot_router):
         app.include_router(router)
     return app

@@ -30,7 +30,7 @@ import numpy as np
 import core.sim  # noqa: F401  (chooses the GL backend before mujoco is imported)
 from app.map_kind import MapKind
 from app.object_label import shown_id
-from app.object_names import find_object
+from app.object_names import NameInUseError, UnknownObjectError, find_object
 from app.runtime.closed_loop import MOVING_STATES, ClosedLoop, untrusted_notice
 from app.runtime.config import RuntimeConfig
 from app.runtime.live_loops import LiveLoops
@@ -50,7 +50,7 @@ from core.sim.sim_robot import SimRobot
 from core.sim.simulated_backend import is_simulated
 from core.sim.world import SimWorld
 from core.types import NQ, DepthFrame, LocalEDF, Plan, RobotBackend, RobotState, steps_in_lockstep
-from tasks.schema import NamedObject, TaskSequence
+from tasks.schema import NamedObject, TaskSequence, anchored_on
 from tasks.sequence_file import load_sequence
 from tasks.sequencer import Sequencer
 from tasks.validation import TargetFinding
@@ -319,23 +319,48 @@ class Runtime:
         self._loop.set_sequence(sequence)
         return warnings
 
-    def name_object(self, name: str, object_id: str) -> TaskSequence:
-        """Name a mapped object (`object_<n>`; a scene box id with the ground-truth map) for anchored targets:
-        bound now and saved with the sequence where it is; ValueError for a bad name or an unknown object."""
+    def name_object(self, name: str, object_id: str,
+                    size: tuple[float, float, float] | None = None) -> TaskSequence:
+        """Name a mapped object (`object_<n>`; a scene box id with the ground-truth map) for anchored targets, with
+        its full size (m) if known: bound now and saved with the sequence where it is. Naming it again with its own
+        name sets its size. `UnknownObjectError` (no such object), `NameTakenError` (the name is bound to another
+        object, or the object has another name), ValueError (a bad name or size: NaN, ≤ 0)."""
         loop = self.closed_loop
         with loop.using_map() as world_map:
             obj = find_object(world_map, self.world, object_id)
         if obj is None:
-            raise ValueError(f"no object {shown_id(object_id)} in the map")
+            raise UnknownObjectError(f"no object {shown_id(object_id)} in the map")
         seq = self.sequence
         named = NamedObject(position=(float(obj.position[0]), float(obj.position[1]), float(obj.position[2])),
-                            yaw_deg=math.degrees(obj.yaw))
-        objects = {**seq.model_dump()["objects"], name: named.model_dump()}
-        sequence = TaskSequence.model_validate({**seq.model_dump(), "objects": objects})
+                            yaw_deg=math.degrees(obj.yaw), size=size)
+        sequence = TaskSequence.model_validate({**seq.model_dump(),
+                                                "objects": {**seq.model_dump()["objects"], name: named.model_dump()}})
         with loop.step_lock:  # the control step reads the names (live mode: another thread)
-            loop.names.name(name, obj, self.time)
-            loop.refresh_objects_view()  # the name shows at once, paused too
+            loop.names.check_free(name, object_id)
+            loop.names.name(name, obj, self.time, size)
         self.set_sequence(sequence)
+        with loop.step_lock:
+            loop.refresh_objects_view()  # the name (and its size) show at once, paused too
+        return sequence
+
+    def unname_object(self, name: str) -> TaskSequence:
+        """Take a name away (from its object and the sequence). `UnknownObjectError` if no object has it,
+        `NameInUseError` while a subtask of the authored or the running sequence is anchored on it."""
+        loop = self.closed_loop
+        seq = self.sequence
+        if name not in seq.objects and name not in loop.names.bound():
+            raise UnknownObjectError(f"no object is named {name}")
+        users = anchored_on(seq, name) or anchored_on(loop.sequencer.sequence, name)
+        if users:
+            raise NameInUseError(f"{name} is the anchor of subtask {', '.join(map(str, users))}: remove or re-anchor "
+                                 "those first")
+        objects = {k: v for k, v in seq.model_dump()["objects"].items() if k != name}
+        sequence = TaskSequence.model_validate({**seq.model_dump(), "objects": objects})
+        with loop.step_lock:
+            loop.names.forget(name)
+        self.set_sequence(sequence)
+        with loop.step_lock:
+            loop.refresh_objects_view()
         return sequence
 
     # --- scene edits (simulation only) -------------------------------------------------------------

@@ -4,12 +4,16 @@ author "Reach its top" / "Approach its front" on it, and see each binding: the n
 anchored goal's frame sitting on the object and moving with it, a line joining the two, and the list of
 anchored subtasks ("2. pick: top of box_3 → #4"). Objects are listed by the one name they have everywhere ('#4').
 
+A name may come with the object's full size (*Size (m)*, all 0: unknown): anchors on a box seen from one side
+are then placed from the face seen and that size (docs/design.md, "Anchored targets").
+
 It reads snapshots only (`Snapshot.anchors`, `object_map`, `progress`) and changes the run through the
 runtime's public API (`name_object`, `set_sequence`)."""
 
 from __future__ import annotations
 
 import logging
+import math
 
 import numpy as np
 import viser
@@ -70,6 +74,8 @@ class AnchorPanel:
         none: tuple[str, ...] = (NONE,)
         self.object = gui.add_dropdown("Object", options=none, initial_value=NONE)
         self.name = gui.add_text("Object name", initial_value="box_1")
+        self.size = gui.add_vector3("Size (m)", (0.0, 0.0, 0.0), min=(0.0, 0.0, 0.0), step=0.05,
+                                    hint="The object's full size along its x, y, z (all 0: unknown)")
         self.name_button = gui.add_button("Name…")
         self.reach_top = gui.add_button("Reach its top")
         self.approach_front = gui.add_button("Approach its front")
@@ -109,10 +115,19 @@ class AnchorPanel:
             self.object.options = options
             self.object.value = value if value in options else NONE
 
+    def declared_size(self) -> tuple[float, float, float] | None:
+        """The size typed in *Size (m)*: None when all 0 (unknown); ValueError unless every side is a number > 0."""
+        size = tuple(float(v) for v in self.size.value)
+        if all(v == 0.0 for v in size):
+            return None
+        if not all(math.isfinite(v) and v > 0.0 for v in size):
+            raise ValueError(f"size {', '.join(f'{v:g}' for v in size)} m: every side a number > 0 (all 0: unknown)")
+        return size[0], size[1], size[2]
+
     def name_selected(self) -> str:
-        """Name the selected object (`Runtime.name_object`); returns the name."""
+        """Name the selected object with the size typed (`Runtime.name_object`); returns the name."""
         object_id, name = self.selected_id(), self.name.value.strip()
-        self.runtime.name_object(name, object_id)
+        self.runtime.name_object(name, object_id, self.declared_size())
         return name
 
     def add_anchored(self, what: str, template: Anchor) -> None:

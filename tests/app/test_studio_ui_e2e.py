@@ -158,8 +158,9 @@ def _canvas_rect(page) -> dict:
 
 @pytest.mark.slow
 def test_the_names_tab_names_a_clicked_object_and_anchors_a_target_on_it(session):
-    """Click a mapped object in the 3D view, type a name, press *Name…* and *Reach its top*: the name is bound
-    to that object and an anchored subtask on its top joins the sequence, listed with its binding."""
+    """Click a mapped object in the 3D view, type a name and its size, press *Name…* and *Reach its top*: the name
+    is bound to that object with its declared size and an anchored subtask on its top joins the sequence, listed
+    with its binding."""
     runtime, studio, page = session
     page.get_by_role("tab", name="Names").click()
     client = next(iter(studio.server.get_clients().values()))
@@ -170,8 +171,11 @@ def test_the_names_tab_names_a_clicked_object_and_anchors_a_target_on_it(session
     field.fill("box_7")
     field.press("Enter")
     wait_for(lambda: studio.anchor_panel.name.value == "box_7", 30, "the typed name")
+    set_vector(page, "Size (m)", [0.6, 0.5, 0.6])
+    wait_for(lambda: np.allclose(studio.anchor_panel.size.value, (0.6, 0.5, 0.6)), 30, "the typed size")
     page.get_by_role("button", name="Name…").click()
     wait_for(lambda: runtime.closed_loop.names.bound().get("box_7") == "mover", 30, "the name to bind")
+    assert runtime.sequence.objects["box_7"].size == (0.6, 0.5, 0.6)
     page.get_by_role("button", name="Reach its top").click()
     wait_for(lambda: any(s.name == "reach top of box_7" for s in runtime.sequence.subtasks), 30,
              "the anchored subtask")
