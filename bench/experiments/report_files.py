@@ -197,10 +197,10 @@ def finish_experiment(args: argparse.Namespace, name: str, results: list[dict], 
                       settings: dict, draw: Callable[[Path], list[str]], write: Callable[[list[str]], None],
                       show: Callable[[str], bool] = lambda key: True) -> dict[str, float]:
     """The end every experiment's `main` shares: figures drawn into `args.out` (`draw` returns the PNG names),
-    `<name>.json` with the run's stamp (the saved run's for `--report-only`), the markdown (`write(pngs)`),
+    `<name>.json` with the run's stamp (`args.stamp`, taken by `experiment_args` before the trials; the saved run's
+    for `--report-only`), the markdown (`write(pngs)`),
     and the figures `show` selects printed. Returns the figures."""
-    stamp = (RunStamp.saved(args.out, name) if args.report_only
-             else RunStamp.now(str(args.params) if args.params else None))
+    stamp = RunStamp.saved(args.out, name) if args.report_only else args.stamp  # taken when the run began
     args.out.mkdir(parents=True, exist_ok=True)
     pngs = draw(args.out)
     write_json(args.out, name, settings, figures, results, args.quick, stamp=stamp)

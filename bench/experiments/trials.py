@@ -97,6 +97,10 @@ def experiment_args(name: str, description: str, argv: list[str] | None = None,
     except FileFormatError as err:
         parser.error(str(err))
     _use(args.tunables)  # in force here too (summaries), and shipped with each trial to the workers
+    # the commit the trials run on is HEAD now: a commit made while a long run goes on is not the run's
+    from bench.experiments.report_files import RunStamp  # it imports this module (and matplotlib): not at the top
+
+    args.stamp = None if args.report_only else RunStamp.now(str(args.params) if args.params else None)
     return args
 
 

@@ -40,3 +40,16 @@ def test_the_params_file_a_run_used_is_kept_and_named_in_the_command(tmp_path):
     assert "`python -m bench.experiments.ex --params tunables.yaml`" in text
     write_json(tmp_path, "plain", {}, {}, [], quick=False, stamp=CLEAN)
     assert "--params" not in write_markdown(tmp_path, "plain", "Example", [], quick=False).read_text()
+
+
+def test_a_run_is_stamped_with_the_commit_it_began_on_not_the_one_at_its_end(tmp_path):
+    """A commit made while a long run goes on is not the run's: `finish_experiment` writes the stamp
+    `experiment_args` took before the trials."""
+    import argparse
+
+    from bench.experiments.report_files import finish_experiment
+
+    began = RunStamp("abc1234", "2026-01-02T03:04:05Z", {"cpu": "Test CPU", "cores": 2})
+    args = argparse.Namespace(out=tmp_path, report_only=False, params=None, quick=False, stamp=began)
+    finish_experiment(args, "ex", [], {}, {}, lambda out: [], lambda pngs: None)
+    assert RunStamp.saved(tmp_path, "ex").commit == "abc1234"
