@@ -30,7 +30,7 @@ from tasks.references import (
     project_on_path,
 )
 from tasks.schema import BasePose, BaseSubtask, EESubtask, TaskSequence
-from tasks.stance_turn import needs_turn, turn_first
+from tasks.stance_turn import needs_turn, turn_references
 
 log = logging.getLogger(__name__)
 
@@ -471,7 +471,8 @@ class Sequencer:
         order = tuple(sub.order)
         if isinstance(sub, EESubtask):
             target = sub.path()[min(self._ee_waypoint, len(sub.path()) - 1)]
-            order = self._turned(order, state)
+            if self._turning_now(order, state):
+                return turn_references(self._hold_base, self._switched)
             return manipulation_references(np.array(target.position), target.rotation(), self._hold_base, order,
                                            self._switched, frame=sub.frame)
         path = self._maybe_replan(sub, state, occupied, t)
@@ -483,19 +484,19 @@ class Sequencer:
                                      self.ready, self.params, self.n_nodes, self.dt, order, self._switched,
                                      ee_hold=hold)
 
-    def _turned(self, order: tuple[str, ...], state: RobotState) -> tuple[str, ...]:
-        """An EE subtask's order now: the base's task first while the base turns into its stance (decided at the
-        first references, where the stance is set; once within `stance_turn_deg` the subtask's own order, for
-        good), else `order` (`tasks/stance_turn.py`)."""
+    def _turning_now(self, order: tuple[str, ...], state: RobotState) -> bool:
+        """Whether an EE subtask's base is still turning into its stance first (decided at the first references,
+        where the stance is set; once within `stance_turn_deg` the subtask's own order, for good; never when the
+        base's task already leads): `tasks/stance_turn.py`."""
         if not order or order[0] == "base":
-            return order
+            return False
         far = needs_turn(float(state.q[2]), float(self._hold_base[2]), self.params.stance_turn_deg)
         if self._turning is None:
             self._turning = far
         elif self._turning and not far:
             self._turning = False
             self._switched = True  # a new order: the controller iterates more on the switch
-        return turn_first(order) if self._turning else order
+        return self._turning
 
     def _maybe_replan(self, sub: BaseSubtask, state: RobotState, occupied: np.ndarray | None,
                       t: float) -> np.ndarray:

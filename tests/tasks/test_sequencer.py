@@ -84,9 +84,10 @@ def test_manipulation_stance_and_ee_first(robot):
 
 
 def test_a_target_beside_the_base_turns_the_base_into_its_stance_before_the_hand_reaches(robot):
-    """The aisle's picks: the base stands side-on to a target 1.05 m to its side. Its task comes first until it has
-    turned within `stance_turn_deg` of the stance (facing the target), then the hand's, for good (a switch: the
-    controller iterates more); a target ahead starts with the hand's task first (`tasks/stance_turn.py`)."""
+    """The aisle's picks: the base stands side-on to a target 1.05 m to its side. The base's task leads, the arm at
+    its ready joints, until the base has turned within `stance_turn_deg` of the stance (facing the target); then the
+    hand's task leads, for good (a switch: the controller iterates more). A target ahead starts with the hand's task
+    first (`tasks/stance_turn.py`)."""
     seq = TaskSequence(subtasks=[EESubtask(target=EEPose(position=(-0.75, 1.4, 1.5), rpy_deg=(0, 90, 180)))])
     s = Sequencer(robot, seq)
 
@@ -96,13 +97,14 @@ def test_a_target_beside_the_base_turns_the_base_into_its_stance_before_the_hand
         return refs
 
     first = refs_at(180.0, 0.0)
-    assert first.order == ("base", "ee") and first.base is not None and first.base.yaw is not None
+    assert first.order == ("base", "posture") and first.ee is None and first.posture is not None
+    assert first.base is not None and first.base.yaw is not None
     assert first.base.yaw[0] == pytest.approx(3 * math.pi / 2)  # facing the target: a quarter turn away
-    turning = refs_at(200.0, 0.5)
-    assert turning.order == ("base", "ee") and not turning.switched  # 70° to go
-    turned = refs_at(230.0, 1.0)
-    assert turned.order == ("ee", "base") and turned.switched  # within 45°: the hand reaches
-    later = refs_at(190.0, 1.5, y=2.40)
+    turning = refs_at(230.0, 0.5)
+    assert turning.order == ("base", "posture") and not turning.switched  # 40° to go
+    turned = refs_at(255.0, 1.0)
+    assert turned.order == ("ee", "base") and turned.ee is not None and turned.switched  # within 20°: the hand reaches
+    later = refs_at(230.0, 1.5, y=2.40)
     assert later.order == ("ee", "base") and not later.switched  # once turned, the hand keeps the lead
     ahead = TaskSequence(subtasks=[EESubtask(target=EEPose(position=(2.5, 0.0, 0.8), rpy_deg=(0, 90, 0)))])
     refs = Sequencer(robot, ahead).update(state_at(0.0, 0.0, 0.3), None, 0.0)
