@@ -100,8 +100,9 @@ def test_localization_against_the_self_built_map_bounds_the_drift_odometry_alone
     the largest error is at the lap's end, where the self-built reference has taken in the drift (issue 25 open).
     Since picks turn the base into their stance first (h34-aisle, 2026-11-27) RMSE 9.4 against 10.1 cm, max 28.0
     against 27.8 cm: the two turns in place at each stop (781° turned in the lap against 616°) add heading drift
-    that the registrations do not take out (heading error at 30 s 1.5° against 0.5°; not traced further). Asserted with a margin for changes elsewhere (mapping, control) that move the lap: the RMSE
-    below odometry's, the max within 1.1x odometry's; the issue's 5 cm / 15 cm stay open."""
+    that the registrations do not take out (heading error at 30 s 1.5° against 0.5°; not traced further).
+    Asserted with a margin for changes elsewhere (mapping, control) that move the lap: the RMSE below odometry's,
+    the max within 1.1x odometry's; the issue's 5 cm / 15 cm stay open."""
     odometry = pose_errors(run(0, 1, False)["rows"])[2]
     assert odometry.max() > 0.15, f"the premise: odometry alone drifts past 0.15 m (max {odometry.max():.3f} m)"
     result = run(0, 1, True)
