@@ -471,6 +471,11 @@ class SequencerParams:
     some 10 cm off). The operator is told ("a narrow passage")."""
     obstacle_z_m: tuple[float, float] = (0.05, 2.0)
     """Occupied points between these heights block the base."""
+    stance_turn_deg: float = 20.0
+    """An EE subtask whose base starts farther than this (deg) from its stance's heading (the stance faces the
+    target) turns the base into its stance first, the arm at its ready joints, until within it, then takes its own
+    order (`tasks/stance_turn.py`): side-on, the base stops at delta_safe beside what lies under the target and the
+    arm reaches at full stretch. `math.inf`: never (the hand's task first from the start)."""
     replan_period_s: float = 1.0
     waypoint_pass_m: float = 0.5
     """An intermediate base waypoint counts as passed once the base is this close to it (or beyond the

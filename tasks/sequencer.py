@@ -30,6 +30,7 @@ from tasks.references import (
     project_on_path,
 )
 from tasks.schema import BasePose, BaseSubtask, EESubtask, TaskSequence
+from tasks.stance_turn import needs_turn, turn_references
 
 log = logging.getLogger(__name__)
 
@@ -193,6 +194,8 @@ class Sequencer:
         self._improved_t = 0.0
         self._anchor_goal: np.ndarray | None = None
         """Where the anchored goal was when the plan was made (a move beyond `anchor_follow_m` re-plans)."""
+        self._turning: bool | None = None
+        """EE subtask: the base is turning into its stance first (`tasks/stance_turn.py`); None: not decided yet."""
         self.notices: list[str] = []
         """Messages for the operator since the last `take_notices` (an anchored target follows its object)."""
 
@@ -343,6 +346,7 @@ class Sequencer:
         self._base_waypoint = 0
         self._best_error = math.inf
         self._improved_t = t
+        self._turning = None
         return t
 
     def _distance_to_go(self, pos_err: float) -> float:
@@ -467,6 +471,8 @@ class Sequencer:
         order = tuple(sub.order)
         if isinstance(sub, EESubtask):
             target = sub.path()[min(self._ee_waypoint, len(sub.path()) - 1)]
+            if self._turning_now(order, state):
+                return turn_references(self._hold_base, self._switched)
             return manipulation_references(np.array(target.position), target.rotation(), self._hold_base, order,
                                            self._switched, frame=sub.frame)
         path = self._maybe_replan(sub, state, occupied, t)
@@ -477,6 +483,20 @@ class Sequencer:
         return navigation_references(path, self._s_progress, float(state.q[2]), sub.goal().yaw_rad,
                                      self.ready, self.params, self.n_nodes, self.dt, order, self._switched,
                                      ee_hold=hold)
+
+    def _turning_now(self, order: tuple[str, ...], state: RobotState) -> bool:
+        """Whether an EE subtask's base is still turning into its stance first (decided at the first references,
+        where the stance is set; once within `stance_turn_deg` the subtask's own order, for good; never when the
+        base's task already leads): `tasks/stance_turn.py`."""
+        if not order or order[0] == "base":
+            return False
+        far = needs_turn(float(state.q[2]), float(self._hold_base[2]), self.params.stance_turn_deg)
+        if self._turning is None:
+            self._turning = far
+        elif self._turning and not far:
+            self._turning = False
+            self._switched = True  # a new order: the controller iterates more on the switch
+        return self._turning
 
     def _maybe_replan(self, sub: BaseSubtask, state: RobotState, occupied: np.ndarray | None,
                       t: float) -> np.ndarray:

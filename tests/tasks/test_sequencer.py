@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from core.robot.model import READY_Q
-from core.types import RobotState
+from core.types import References, RobotState
 from tasks import BasePose, BaseSubtask, EEPose, EESubtask, TaskSequence, Tolerance
 from tasks.ready_hand import WRIST_1
 from tasks.sequencer import Outcome, Sequencer
@@ -83,6 +83,34 @@ def test_manipulation_stance_and_ee_first(robot):
     np.testing.assert_allclose(refs.ee.rotation[0][:, 0], [0, 0, -1], atol=1e-12)
     near = Sequencer(robot, seq).update(state_at(2.0, 0.0, 0.3), None, 0.0)
     np.testing.assert_allclose(near.base.xy[0], [2.0, 0.0])  # already within reach: stay
+
+
+def test_a_target_beside_the_base_turns_the_base_into_its_stance_before_the_hand_reaches(robot):
+    """The aisle's picks: the base stands side-on to a target 1.05 m to its side. The base's task leads, the arm at
+    its ready joints, until the base has turned within `stance_turn_deg` of the stance (facing the target); then the
+    hand's task leads, for good (a switch: the controller iterates more). A target ahead starts with the hand's task
+    first (`tasks/stance_turn.py`)."""
+    seq = TaskSequence(subtasks=[EESubtask(target=EEPose(position=(-0.75, 1.4, 1.5), rpy_deg=(0, 90, 180)))])
+    s = Sequencer(robot, seq)
+
+    def refs_at(yaw_deg: float, t: float, y: float = 2.45) -> References:
+        refs = s.update(state_at(-0.75, y, math.radians(yaw_deg)), None, t)
+        assert refs is not None and refs.base is not None
+        return refs
+
+    first = refs_at(180.0, 0.0)
+    assert first.order == ("base", "posture") and first.ee is None and first.posture is not None
+    assert first.base is not None and first.base.yaw is not None
+    assert first.base.yaw[0] == pytest.approx(3 * math.pi / 2)  # facing the target: a quarter turn away
+    turning = refs_at(230.0, 0.5)
+    assert turning.order == ("base", "posture") and not turning.switched  # 40° to go
+    turned = refs_at(255.0, 1.0)
+    assert turned.order == ("ee", "base") and turned.ee is not None and turned.switched  # within 20°: the hand reaches
+    later = refs_at(230.0, 1.5, y=2.40)
+    assert later.order == ("ee", "base") and not later.switched  # once turned, the hand keeps the lead
+    ahead = TaskSequence(subtasks=[EESubtask(target=EEPose(position=(2.5, 0.0, 0.8), rpy_deg=(0, 90, 0)))])
+    refs = Sequencer(robot, ahead).update(state_at(0.0, 0.0, 0.3), None, 0.0)
+    assert refs is not None and refs.order == ("ee", "base")
 
 
 def test_path_replans_around_new_obstacles(robot):
