@@ -19,8 +19,8 @@ import math
 
 import numpy as np
 
+from core.robot.model import READY_Q
 from core.types import BaseReference, References
-from tasks.ready_hand import ReadyHand
 
 
 def heading_gap(base_yaw: float, stance_yaw: float) -> float:
@@ -38,4 +38,5 @@ def turn_references(stance: np.ndarray, switched: bool) -> References:
     it does while the base drives (measured on the aisle, seed 1: reaching during the spin, the hand camera saw the
     base's own front, and the map kept it as a 0.57 m object in the aisle that blocked the next lap)."""
     base = BaseReference(xy=np.asarray(stance[:2], float)[None], yaw=np.array([float(stance[2])]))
-    return References(order=("base", "posture"), base=base, switched=switched, posture=ReadyHand.joints(np.zeros(1)))
+    ready = np.asarray(READY_Q[3:], float)[None]
+    return References(order=("base", "posture"), base=base, switched=switched, posture=ready)
