@@ -452,8 +452,6 @@ class SequencerParams:
     """In navigation the hand camera looks at the path point this far ahead."""
     lookahead_turn_max_deg: float = 60.0
     """The most the arm turns at the shoulder (from its ready pose) to look ahead along the path."""
-    lookahead_height_m: float = 0.3
-    """…and the height (m) of the point it looks at: wrist 1 tilts the hand camera down onto it (40° at 1.5 m)."""
     plan_bounds_m: tuple[float, float, float, float] = (-8.0, 8.0, -8.0, 8.0)
     """The A* grid's extent in the world: x_min, x_max, y_min, y_max."""
     grid_cell_m: float = 0.1

@@ -97,8 +97,7 @@ def navigation_references(path: np.ndarray, s_now: float, yaw_now: float, goal_y
     d = look - xy  # the look-ahead point in each node's reference base frame
     look_b = np.column_stack([c * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + c * d[:, 1]])
     limit = np.radians(params.lookahead_turn_max_deg)
-    posture = ready.joints(np.clip(ready.bearing_to(look_b), -limit, limit),
-                           ready.pitch_to(look_b, params.lookahead_height_m))
+    posture = ready.joints(np.clip(ready.bearing_to(look_b), -limit, limit))
     return References(order=tuple("posture" if n == "ee" else n for n in order), base=base, switched=switched,
                       posture=posture)
 

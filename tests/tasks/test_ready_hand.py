@@ -1,5 +1,4 @@
-"""While the base drives the arm holds its ready joints, the pan turned toward the path ahead within its limit and
-wrist 1 tilting the hand camera down onto the look-ahead point."""
+"""While the base drives the arm holds its ready joints, the pan turned toward the path ahead within its limit."""
 
 import numpy as np
 
@@ -25,9 +24,7 @@ def test_navigation_holds_the_posture_and_turns_it_into_a_turn_within_its_limit(
     left_turn = np.array([[0.0, 0.0], [0.3, 0.0], [0.3, 5.0]])  # a sharp left just ahead
     refs = navigation_references(straight, 0.0, 0.0, None, hand, params, 10, 0.1, ("base", "ee"), False)
     assert refs.order == ("base", "posture") and refs.ee is None and refs.posture is not None
-    straight_q = np.tile(READY_Q[3:], (11, 1))
-    straight_q[:, 3] = refs.posture[:, 3]
-    np.testing.assert_allclose(refs.posture, straight_q, atol=1e-9)  # straight: the ready pose, wrist 1 tilted
+    np.testing.assert_allclose(refs.posture, np.tile(READY_Q[3:], (11, 1)), atol=1e-9)  # straight: the ready pose
     turn = navigation_references(left_turn, 0.0, 0.0, None, hand, params, 10, 0.1, ("ee", "base"), False)
     assert turn.order == ("posture", "base") and turn.posture is not None
     pan = turn.posture[:, 0]
@@ -36,20 +33,3 @@ def test_navigation_holds_the_posture_and_turns_it_into_a_turn_within_its_limit(
     held = navigation_references(straight, 0.0, 0.0, None, hand, params, 10, 0.1, ("base", "ee"), False,
                                  ee_hold=(np.array([0.6, 0.0, 1.0]), None))
     assert held.order == ("base", "ee") and held.ee is not None and held.posture is None
-
-
-def test_wrist_1_points_the_hand_camera_at_the_look_ahead_point():
-    """The camera axis (the hand frame's x) passes within a few cm of the point `lookahead_m` ahead at
-    `lookahead_height_m`: the ready pose alone looks 23° down, over where a vacated place would be seen through."""
-    robot, params = RobotModel(), SequencerParams()
-    hand = ReadyHand.of(robot)
-    assert np.degrees(hand.pitch_rad) < -20 and abs(hand.pitch_per_wrist_1 + 1.0) < 0.05
-    refs = navigation_references(np.array([[0.0, 0.0], [6.0, 0.0]]), 0.0, 0.0, None, hand, params, 10, 0.1,
-                                 ("base", "ee"), False)
-    assert refs.posture is not None
-    T = robot.frame_poses(np.concatenate([[0.0, 0.0, 0.0], refs.posture[0]]), ("ee",))["ee"]
-    eye, axis = T[:3, 3], T[:3, 0]
-    hit = eye + axis * (params.lookahead_height_m - eye[2]) / axis[2]  # where the axis meets that height
-    look_x = params.lookahead_m  # the path runs along x from the base
-    assert np.degrees(np.arctan2(axis[2], np.hypot(axis[0], axis[1]))) < -35
-    assert abs(hit[0] - look_x) < 0.15 and abs(hit[1]) < 0.2
