@@ -20,11 +20,12 @@ meanwhile, and the global search that ends it (docs/method.md, "State estimation
   First, though: if the estimate itself fits about as well as the best guess before registration
   (`SearchResult.estimate_fits`: within `search_coarse_m` the refusals came from a drifted pose, not a jump), or if
   the frame fits the reference nowhere in the window (no registered guess scores `search_min_score`: the reference
-  does not describe this view, and the frame cannot tell where the base is), the run goes on from the estimate,
-  and the objects the streak's inconsistent registrations found off their surfaces (`Episode.suspects`) are set
-  aside (out of the reference for `exclusion_s`, not handed to the map as change evidence): the view disagreed with
-  them, not with the pose, and without them the next frames of the same view can be confirmed and mapped instead of
-  making the localizer lost again (E1's scene 8: six times, then a fault; docs/decisions.md).
+  does not describe this view, and the frame cannot tell where the base is), the run goes on from the estimate.
+  When the estimate fits, the objects the streak's inconsistent registrations found off their surfaces
+  (`Episode.suspects`) are set aside (out of the reference for `exclusion_s`, not handed to the map as change
+  evidence): the view disagreed with them, not with the pose, and without them the next frames of the same view can
+  be confirmed and mapped instead of making the localizer lost again (E1's scene 8: seven times, then a fault;
+  docs/decisions.md). Not when nothing fits: that frame tells nothing, about the objects either.
   Only ambiguity faults: after `search_tries` searches that found good fits at distinct poses, `failed` holds the
   reason ("lost localization: …") and the loop faults.
 
@@ -235,8 +236,8 @@ def search_frame(loc: Searcher, frame: DepthFrame, base_pose: np.ndarray, surfac
     result = global_search.search(ref, target, source, frame.T_world_camera, base_pose, p)
     with loc.lock:
         apply_t, reanchor = loc.lost.searched(frame.t, result)
-        if not reanchor and loc.lost.resume_t is not None:  # no jump after all, or nothing to tell by: the objects
-            loc.set_aside(loc.lost.episodes[-1].suspects, frame.t)  # the view disagreed with are set aside a while
+        if result.estimate_fits:  # no jump after all: the objects the view disagreed with are set aside a while
+            loc.set_aside(loc.lost.episodes[-1].suspects, frame.t)
         if not reanchor or result.best is None:  # (best is set whenever it re-anchors)
             return {"registration_ms": result.ms, "reference_ms": ref_ms}
         delta = se2.compose(result.best.pose, se2.inverse(base_pose))
