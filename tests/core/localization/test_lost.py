@@ -146,7 +146,7 @@ def test_an_object_the_search_found_no_jump_against_is_set_aside_and_the_view_do
     mapped while the pose had drifted, seen from its other side), makes every registration inconsistent at a confident
     prediction that is right; the localizer gets lost, and the search finds the estimate fitting (no jump). That object
     is then set aside for `exclusion_s` (not handed to the map as change evidence), so the next frames have nothing to
-    be inconsistent with: the view does not make the localizer lost again and again, as it did (six times, then a
+    be inconsistent with: the view does not make the localizer lost again and again, as it did (seven times, then a
     search found no estimate fitting and the run faulted)."""
     seen = [FLOOR, *box((2.0, 0.0), 0.6, 4)]
     mapped = surface_of([FLOOR, *box((2.12, 0.0), 0.6, 4)])  # the map's object 4, 12 cm deeper than it is seen
