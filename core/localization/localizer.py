@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 import threading
 from collections import Counter, deque
+from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -52,6 +53,9 @@ class Correction:
     registration_ms: float = math.nan
     reference_ms: float = 0.0
     disagreeing: tuple[int, ...] = ()
+    off: tuple[int, ...] = ()
+    """Inconsistent only: the objects found off their surfaces (most of those judged); unlike `disagreeing`, neither
+    left out of the reference nor handed to the map (the pose was in doubt, not they)."""
     apply_t: float = math.nan
     pose: np.ndarray | None = None
     """The base's world pose at the frame's exposure after the correction (accepted ones only)."""
@@ -189,9 +193,10 @@ class Localizer:
         # in view can drag the alignment and make a still one look off), else after the alignment
         confident = radius <= p.radius_min_m + 1e-9
         judged_at = frame.T_world_camera if confident else result.T_world_camera
-        disagreeing = self._disagreeing(ref, target, source, judged_at)
-        if disagreeing is None:
-            return self._record(Correction(frame.t, Verdict.INCONSISTENT, registration_ms=ms, reference_ms=ref_ms))
+        disagreeing, judged = self._off_objects(ref, target, source, judged_at)
+        if disagreeing and 2 * len(disagreeing) > judged:  # most objects judged are off: the pose is in doubt
+            return self._record(Correction(frame.t, Verdict.INCONSISTENT, registration_ms=ms, reference_ms=ref_ms,
+                                           off=disagreeing))
         if disagreeing:
             for i in disagreeing:
                 self._excluded[i] = frame.t + p.exclusion_s
@@ -247,10 +252,11 @@ class Localizer:
             self.filter.P = self.filter.P + np.diag(np.asarray(innovation, float) ** 2)
         return jump
 
-    def _disagreeing(self, ref: Reference, target: registration.Target, source, T: np.ndarray
-                     ) -> tuple[int, ...] | None:
+    def _off_objects(self, ref: Reference, target: registration.Target, source, T: np.ndarray
+                     ) -> tuple[tuple[int, ...], int]:
         """Objects whose frame points, placed by the camera pose T, sit farther than `disagreement_m` (median)
-        from the reference; None when most objects judged disagree (then the pose, not the objects, is in doubt)."""
+        from the reference, and how many objects were judged (when most of them are off, the pose, not the
+        objects, is in doubt: the caller's inconsistent verdict)."""
         p = self.params
         pts = np.asarray(source.points())[:, :3]
         idx, d = target.nearest(pts @ T[:3, :3].T + T[:3, 3])
@@ -264,9 +270,14 @@ class Localizer:
             judged += 1
             if float(np.median(d[mine])) > p.disagreement_m:
                 off.append(int(i))
-        if off and 2 * len(off) > judged:
-            return None
-        return tuple(off)
+        return tuple(off), judged
+
+    def set_aside(self, ids: Iterable[int], t: float) -> None:
+        """Leave objects out of the reference until robot time t + `exclusion_s`, without handing them to the map as
+        change evidence (a search found no jump: they disagreed with the view, not the pose; `lost.search_frame`)."""
+        until = t + self.params.exclusion_s
+        for i in ids:
+            self._excluded[i] = max(self._excluded.get(i, -math.inf), until)
 
     def prepared_reference(self, surface: ReferenceSurface | None, centre_xy: np.ndarray
                   ) -> tuple[Reference, registration.Target, float]:
@@ -295,7 +306,7 @@ class Localizer:
             if correction.verdict == Verdict.ACCEPTED:
                 self._accepted_t.append(correction.t)
             if self.lost.observe(correction.verdict, correction.t, self.status != LocalizationStatus.ODOMETRY,
-                                 correction.jump):
+                                 correction.jump, correction.off):
                 self.status = LocalizationStatus.LOST
         return correction
 

@@ -21,6 +21,11 @@ meanwhile, and the global search that ends it (docs/method.md, "State estimation
   (`SearchResult.estimate_fits`: within `search_coarse_m` the refusals came from a drifted pose, not a jump), or if
   the frame fits the reference nowhere in the window (no registered guess scores `search_min_score`: the reference
   does not describe this view, and the frame cannot tell where the base is), the run goes on from the estimate.
+  When the estimate fits, the objects the streak's inconsistent registrations found off their surfaces
+  (`Episode.suspects`) are set aside (out of the reference for `exclusion_s`, not handed to the map as change
+  evidence): the view disagreed with them, not with the pose, and without them the next frames of the same view can
+  be confirmed and mapped instead of making the localizer lost again (E1's scene 8: seven times, then a fault;
+  docs/decisions.md). Not when nothing fits: that frame tells nothing, about the objects either.
   Only ambiguity faults: after `search_tries` searches that found good fits at distinct poses, `failed` holds the
   reason ("lost localization: …") and the loop faults.
 
@@ -31,7 +36,8 @@ from __future__ import annotations
 
 import math
 import threading
-from dataclasses import dataclass
+from collections.abc import Iterable
+from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
 import numpy as np
@@ -69,6 +75,8 @@ class Episode:
     searches: tuple[tuple[float, SearchResult], ...] = ()
     anchored_t: float = math.nan
     delta: np.ndarray | None = None
+    suspects: tuple[int, ...] = ()
+    """The objects the streak's inconsistent registrations found off their surfaces."""
 
 
 class LostWatch:
@@ -95,14 +103,17 @@ class LostWatch:
         """Why the localizer gave up ("lost localization: …"); the loop faults with it."""
         self.episodes: list[Episode] = []
         self._last_pose: np.ndarray | None = None
+        self._suspects: set[int] = set()
+        """The objects the current streak's inconsistent registrations found off their surfaces."""
 
     @property
     def tries(self) -> int:
         return len(self.episodes[-1].searches) if self.lost and self.episodes else 0
 
-    def observe(self, verdict: Verdict, t: float, localized: bool, jump: bool = True) -> bool:
+    def observe(self, verdict: Verdict, t: float, localized: bool, jump: bool = True, off: Iterable[int] = ()) -> bool:
         """A registration's verdict for the frame exposed at t (`jump`: a χ² refusal's innovation is as large as a
-        jump); whether the localizer got lost with it."""
+        jump; `off`: the objects an inconsistent one found off their surfaces); whether the localizer got lost with
+        it."""
         if self.lost:
             return False
         p = self.params
@@ -111,17 +122,22 @@ class LostWatch:
             return False
         if verdict in DISAGREEING and localized:
             self.streak.append(t)
+            self._suspects.update(off)
             self.doubted_t = t
             if len(self.streak) >= p.lost_min_refusals and t - self.streak[0] >= p.lost_after_s - 1e-9:
                 self.lost = True
-                self.episodes.append(Episode(self.streak[0], t))
+                self.episodes.append(Episode(self.streak[0], t, suspects=tuple(sorted(self._suspects))))
                 return True
         elif verdict == Verdict.ACCEPTED or verdict in UNJUDGED:
-            self.streak = []
+            self._end_streak()
             self.confirmed_t = max(self.confirmed_t, t)
         elif self.streak and t - self.streak[-1] > p.lost_after_s:
-            self.streak = []  # degenerate ever since: the refusals stopped (the frames held meanwhile are dropped)
+            self._end_streak()  # degenerate ever since: the refusals stopped (the frames held meanwhile are dropped)
         return False
+
+    def _end_streak(self) -> None:
+        self.streak = []
+        self._suspects = set()
 
     def wants_search(self, t: float, base_pose: np.ndarray) -> bool:
         """Whether the frame exposed at t, the base at `base_pose` (by odometry) then, runs a search: lost, none under
@@ -141,7 +157,7 @@ class LostWatch:
         self.busy_until_t = due
         episode = self.episodes[-1]
         searches = (*episode.searches, (t, result))
-        self.episodes[-1] = Episode(episode.refused_t, episode.lost_t, searches)
+        self.episodes[-1] = replace(episode, searches=searches)
         if result.estimate_fits or not result.fits:  # no jump after all, or nothing to tell: go on from the estimate
             self.resume_t = due
             self.resume_delta = np.zeros(3)
@@ -156,11 +172,10 @@ class LostWatch:
     def applied(self, t: float, delta: np.ndarray) -> None:
         """The re-anchoring (Δ) was applied at robot time t: found again; frames after it are mapped again once
         confirmed."""
-        episode = self.episodes[-1]
-        self.episodes[-1] = Episode(episode.refused_t, episode.lost_t, episode.searches, t, np.asarray(delta, float))
+        self.episodes[-1] = replace(self.episodes[-1], anchored_t=t, delta=np.asarray(delta, float))
         self.lost = False
         self.resume_t = None
-        self.streak = []
+        self._end_streak()
         self.drop_until_t = t
         self.confirmed_t = max(self.confirmed_t, t)
 
@@ -197,6 +212,8 @@ class Searcher(Protocol):
 
     def schedule(self, apply_t: float, delta: np.ndarray) -> None: ...
 
+    def set_aside(self, ids: Iterable[int], t: float) -> None: ...
+
     def prepared_reference(self, surface: ReferenceSurface | None, centre_xy: np.ndarray
                   ) -> tuple[Reference, registration.Target, float]: ...
 
@@ -219,6 +236,8 @@ def search_frame(loc: Searcher, frame: DepthFrame, base_pose: np.ndarray, surfac
     result = global_search.search(ref, target, source, frame.T_world_camera, base_pose, p)
     with loc.lock:
         apply_t, reanchor = loc.lost.searched(frame.t, result)
+        if result.estimate_fits:  # no jump after all: the objects the view disagreed with are set aside a while
+            loc.set_aside(loc.lost.episodes[-1].suspects, frame.t)
         if not reanchor or result.best is None:  # (best is set whenever it re-anchors)
             return {"registration_ms": result.ms, "reference_ms": ref_ms}
         delta = se2.compose(result.best.pose, se2.inverse(base_pose))
