@@ -25,7 +25,7 @@ import matplotlib.patches as mpatches  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from bench.experiments.trials import ROOT  # noqa: E402
+from bench.experiments.paths import ROOT  # noqa: E402
 from bench.report import machine  # noqa: E402
 from core.atomic_file import atomic_output, write_text_atomic  # noqa: E402
 from core.scene import Box  # noqa: E402

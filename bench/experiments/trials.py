@@ -32,14 +32,13 @@ from pathlib import Path
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
 import core.sim  # noqa: F401  (chooses the GL backend once; spawned workers inherit MUJOCO_GL)
+from bench.experiments.paths import REPORTS_DIR, ROOT
 from core.params import HTMPCParams
 from core.params_file import Tunables, load_params
 from core.yaml_validation import FileFormatError
 
 log = logging.getLogger(__name__)
 
-ROOT = Path(__file__).parents[2]
-REPORTS_DIR = ROOT / "reports"
 RAY_EXCLUDES = [".venv", ".git", "reports", "test-artifacts", "bench/results", "runs", "*.egg-info"]
 SINGLE_THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
@@ -98,7 +97,7 @@ def experiment_args(name: str, description: str, argv: list[str] | None = None,
         parser.error(str(err))
     _use(args.tunables)  # in force here too (summaries), and shipped with each trial to the workers
     # the commit the trials run on is HEAD now: a commit made while a long run goes on is not the run's
-    from bench.experiments.report_files import RunStamp  # it imports this module (and matplotlib): not at the top
+    from bench.experiments.report_files import RunStamp  # (matplotlib with it: not in the trials' workers)
 
     args.stamp = None if args.report_only else RunStamp.now(str(args.params) if args.params else None)
     return args

@@ -175,6 +175,8 @@ def test_the_names_tab_names_a_clicked_object_and_anchors_a_target_on_it(session
     wait_for(lambda: np.allclose(studio.anchor_panel.size.value, (0.6, 0.5, 0.6)), 30, "the typed size")
     page.get_by_role("button", name="Name…").click()
     wait_for(lambda: runtime.closed_loop.names.bound().get("box_7") == "mover", 30, "the name to bind")
+    # the UI's callback binds the name, then sets the sequence that saves it: wait for both
+    wait_for(lambda: "box_7" in runtime.sequence.objects, 30, "the name saved with the sequence")
     assert runtime.sequence.objects["box_7"].size == (0.6, 0.5, 0.6)
     page.get_by_role("button", name="Reach its top").click()
     wait_for(lambda: any(s.name == "reach top of box_7" for s in runtime.sequence.subtasks), 30,
