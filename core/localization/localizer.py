@@ -198,8 +198,7 @@ class Localizer:
             return self._record(Correction(frame.t, Verdict.INCONSISTENT, registration_ms=ms, reference_ms=ref_ms,
                                            off=disagreeing))
         if disagreeing:
-            for i in disagreeing:
-                self._excluded[i] = frame.t + p.exclusion_s
+            self.set_aside(disagreeing, frame.t)
             if self.frozen is not None and p.refreeze_disagreeing:
                 self.frozen.forget(disagreeing)
                 surface = self.frozen.surface
@@ -273,14 +272,15 @@ class Localizer:
         return tuple(off), judged
 
     def set_aside(self, ids: Iterable[int], t: float) -> None:
-        """Leave objects out of the reference until robot time t + `exclusion_s`, without handing them to the map as
-        change evidence (a search found no jump: they disagreed with the view, not the pose; `lost.search_frame`)."""
+        """Leave objects out of the reference until robot time t + `exclusion_s` (a registration's disagreeing objects;
+        and, without handing them to the map as change evidence, those a search found no jump against:
+        `lost.search_frame`)."""
         until = t + self.params.exclusion_s
         for i in ids:
             self._excluded[i] = max(self._excluded.get(i, -math.inf), until)
 
     def prepared_reference(self, surface: ReferenceSurface | None, centre_xy: np.ndarray
-                  ) -> tuple[Reference, registration.Target, float]:
+                           ) -> tuple[Reference, registration.Target, float]:
         """The reference and its prepared target, rebuilt only when the surface, the excluded objects or the
         base's 1 m cell change; the ms spent rebuilding (0 when kept)."""
         cell = tuple(np.floor(centre_xy).astype(int))
