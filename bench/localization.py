@@ -34,9 +34,9 @@ from app.runtime import Runtime
 from bench.experiments.e4_long_term import SEED, lap_sequence, layouts, run_sequence, scene
 from bench.experiments.trials import quiet_logs, runtime_config
 from bench.report import bench_args, percentile, write_result
+from core.angles import wrap_angle
 from core.localization.gates import FAILURES, Verdict
 from core.localization.localizer import DEGENERATE
-from core.localization.se2 import wrap
 from core.params import LocalizationParams
 from core.scene import Box
 from core.types import ReferenceSurface
@@ -140,7 +140,7 @@ def pose_errors(rows: list) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndar
     lap = np.array([r[1] for r in rows])
     est, truth = np.array([r[2] for r in rows]), np.array([r[3] for r in rows])
     xy = np.linalg.norm(est[:, :2] - truth[:, :2], axis=1)
-    yaw = np.array([wrap(a) for a in est[:, 2] - truth[:, 2]])
+    yaw = np.array([wrap_angle(a) for a in est[:, 2] - truth[:, 2]])
     return t, lap, xy, yaw
 
 
@@ -184,7 +184,7 @@ def false_corrections_pct(result: dict) -> float:
         te = c.t - result["latency_s"]
         true = np.array([np.interp(te, t, truth[:, i]) for i in range(2)])
         yaw = truth[int(np.clip(np.searchsorted(t, te), 0, len(t) - 1)), 2]
-        if np.linalg.norm(c.pose[:2] - true) > FALSE_M or abs(math.degrees(wrap(c.pose[2] - yaw))) > FALSE_DEG:
+        if np.linalg.norm(c.pose[:2] - true) > FALSE_M or abs(math.degrees(wrap_angle(c.pose[2] - yaw))) > FALSE_DEG:
             bad += 1
     return 100.0 * bad / len(accepted)
 

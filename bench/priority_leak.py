@@ -17,6 +17,7 @@ import numpy as np
 import pinocchio as pin
 
 import core.sim  # noqa: F401  (GL backend first)
+from core.angles import wrap_angle
 from core.htmpc import HTMPC
 from core.htmpc.so3 import log3
 from core.params import SensorParams
@@ -45,7 +46,7 @@ class CaseResult:
 
 def _errors(robot: RobotModel, q: np.ndarray) -> dict[str, np.ndarray]:
     T = robot.ee_pose(q)
-    yaw = (BASE.yaw[0] - q[2] + np.pi) % (2 * np.pi) - np.pi
+    yaw = wrap_angle(BASE.yaw[0] - q[2])
     return {"base": np.array([np.hypot(*(q[:2] - BASE.xy[0])), np.degrees(abs(yaw))]),
             "ee": np.array([np.linalg.norm(T[:3, 3] - EE.position[0]),
                             np.degrees(np.linalg.norm(log3(T[:3, :3].T @ EE.rotation[0])))])}

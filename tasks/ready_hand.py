@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core.angles import wrap_angle
 from core.robot.model import READY_Q, RobotModel
 
 
@@ -43,4 +44,4 @@ class ReadyHand:
         """Bearing (rad) of base-frame points (K, 2) from the pan axis, against the ready camera's heading: the pan
         turn that faces the hand camera toward them (0 for a point straight ahead)."""
         d = np.asarray(points_b, float)[:, :2] - self.pan_axis_xy
-        return (np.arctan2(d[:, 1], d[:, 0]) - self.heading_rad + np.pi) % (2 * np.pi) - np.pi
+        return wrap_angle(np.arctan2(d[:, 1], d[:, 0]) - self.heading_rad)

@@ -15,6 +15,7 @@ from enum import StrEnum
 
 import numpy as np
 
+from core.angles import wrap_angle
 from core.params import HTMPCParams, SequencerParams
 from core.robot.model import RobotModel
 from core.types import References, RobotState
@@ -103,10 +104,6 @@ def _anchor_object(sub: BaseSubtask | EESubtask) -> str | None:
 def _angle_between(R_a: np.ndarray, R_b: np.ndarray) -> float:
     cos = (np.trace(R_a.T @ R_b) - 1.0) / 2.0
     return math.degrees(math.acos(float(np.clip(cos, -1.0, 1.0))))
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2 * math.pi) - math.pi
 
 
 def _goal_shift(goal: np.ndarray, path_end: np.ndarray) -> GoalShift | None:
@@ -451,7 +448,7 @@ class Sequencer:
             shift = self.progress[self.index].goal_shift
             xy = np.array(shift.driven) if shift is not None else goal.xy()
             pos = float(np.hypot(*(state.q[:2] - xy)))
-            ori = math.nan if goal.yaw_rad is None else abs(math.degrees(_wrap(state.q[2] - goal.yaw_rad)))
+            ori = math.nan if goal.yaw_rad is None else abs(math.degrees(wrap_angle(state.q[2] - goal.yaw_rad)))
             return pos, ori
         T = self.robot.ee_pose(state.q)
         if sub.frame == "base":

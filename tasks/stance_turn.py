@@ -19,13 +19,14 @@ import math
 
 import numpy as np
 
+from core.angles import wrap_angle
 from core.robot.model import READY_Q
 from core.types import BaseReference, References
 
 
 def heading_gap(base_yaw: float, stance_yaw: float) -> float:
     """|base_yaw − stance_yaw| wrapped to [0, π] (rad)."""
-    return abs((base_yaw - stance_yaw + math.pi) % (2 * math.pi) - math.pi)
+    return abs(wrap_angle(base_yaw - stance_yaw))
 
 
 def needs_turn(base_yaw: float, stance_yaw: float, turn_deg: float) -> bool:

@@ -15,6 +15,7 @@ import viser.uplot as uplot
 
 from app.object_label import object_label, operator_names
 from app.runtime.snapshot import RunState, Snapshot
+from core.angles import wrap_angle
 
 WINDOW = 300
 """Rows (snapshots) kept at full rate: the last 15 s at the studio's 20 snapshots a second."""
@@ -219,5 +220,5 @@ def localization_row(snap: Snapshot) -> tuple[float, float, float, float, float]
     if snap.base_estimate is not None and snap.base_true is not None:
         d = snap.base_estimate - snap.base_true
         position = float(np.hypot(d[0], d[1]))
-        heading = float(np.degrees(abs((d[2] + np.pi) % (2 * np.pi) - np.pi)))
+        heading = float(np.degrees(abs(wrap_angle(d[2]))))
     return position, heading, health.accepted_per_s, float(health.rejected), float(health.degenerate)

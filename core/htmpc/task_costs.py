@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core.angles import wrap_angle
 from core.htmpc.horizon_kinematics import HorizonKinematics
 from core.htmpc.so3 import left_jacobian_inverse, log3
 from core.types import BaseReference, EEReference, References
@@ -81,7 +82,7 @@ class BaseTaskCost(TaskCost):
         if ref.yaw is None:
             return xy
         dyaw = _broadcast(np.asarray(ref.yaw, float).reshape(-1, 1), K)[:, 0] - q[:, 2]
-        return np.column_stack([xy, (dyaw + np.pi) % (2 * np.pi) - np.pi])
+        return np.column_stack([xy, wrap_angle(dyaw)])
 
     def compute_jacobian(self, q: np.ndarray, kin: HorizonKinematics | None, ref: BaseReference,
                          e: np.ndarray | None = None) -> np.ndarray:

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core.angles import wrap_angle
 from core.localization import registration, se2
 from core.localization.reference import FLOOR_ID, Reference
 from core.params import LocalizationParams
@@ -175,4 +176,4 @@ def _within(pose: np.ndarray, base_pose: np.ndarray, p: LocalizationParams) -> b
 
 def _distinct(a: np.ndarray, b: np.ndarray, p: LocalizationParams) -> bool:
     return bool(np.hypot(a[0] - b[0], a[1] - b[1]) > p.search_distinct_m
-                or abs(se2.wrap(float(a[2] - b[2]))) > p.search_distinct_rad)
+                or abs(wrap_angle(float(a[2] - b[2]))) > p.search_distinct_rad)

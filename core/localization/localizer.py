@@ -24,6 +24,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from core.angles import wrap_angle
 from core.localization import degeneracy, gates, health, lost, registration, scan, se2
 from core.localization.frozen_surfaces import FrozenSurfaces
 from core.localization.gates import Verdict
@@ -314,7 +315,7 @@ class Localizer:
 def _constrained_innovation(measured: np.ndarray, predicted: np.ndarray, dirs: degeneracy.Directions
                             ) -> np.ndarray:
     """measured ⊖ predicted (x, y, yaw) along the registration's constrained directions only."""
-    nu = np.array([measured[0] - predicted[0], measured[1] - predicted[1], se2.wrap(measured[2] - predicted[2])])
+    nu = np.array([measured[0] - predicted[0], measured[1] - predicted[1], wrap_angle(measured[2] - predicted[2])])
     U = dirs.vectors[:, dirs.constrained]
     return np.linalg.inv(dirs.scale) @ U @ U.T @ dirs.scale @ nu
 

@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.localization.se2 import rot, wrap
+from core.angles import wrap_angle
+from core.localization.se2 import rot
 
 
 def predict_covariance(P: np.ndarray, odom_from: np.ndarray, odom_to: np.ndarray, world_yaw_offset: float,
@@ -21,7 +22,7 @@ def predict_covariance(P: np.ndarray, odom_from: np.ndarray, odom_to: np.ndarray
     odometry frame); `world_yaw_offset` is T_world←odom's yaw (turns the displacement into the world)."""
     d = rot(world_yaw_offset) @ (np.asarray(odom_to[:2], float) - np.asarray(odom_from[:2], float))
     distance = float(np.hypot(*d))
-    turn = abs(wrap(float(odom_to[2]) - float(odom_from[2])))
+    turn = abs(wrap_angle(float(odom_to[2]) - float(odom_from[2])))
     F = np.array([[1.0, 0.0, -d[1]], [0.0, 1.0, d[0]], [0.0, 0.0, 1.0]])
     Q = np.diag([drift_m**2 * distance, drift_m**2 * distance, drift_rad**2 * turn])
     return F @ P @ F.T + Q

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core.angles import wrap_angle
 from core.localization import se2
 from core.localization.degeneracy import Directions
 from core.localization.odometry_prediction import predict_covariance
@@ -46,7 +47,7 @@ class PoseFilter:
                sigma_yaw_rad: float, inflate_below: float) -> Update:
         """The update a measured base pose (world, at the frame's exposure) would make, along the constrained
         directions only; nothing is changed here (`apply` does)."""
-        nu = np.array([measured[0] - predicted[0], measured[1] - predicted[1], se2.wrap(measured[2] - predicted[2])])
+        nu = np.array([measured[0] - predicted[0], measured[1] - predicted[1], wrap_angle(measured[2] - predicted[2])])
         U = dirs.vectors[:, dirs.constrained]
         if U.shape[1] == 0:
             return Update(np.zeros(3), 0.0, 0, self.P)

@@ -6,10 +6,7 @@ import math
 
 import numpy as np
 
-
-def wrap(angle: float) -> float:
-    """An angle in [-π, π)."""
-    return (angle + math.pi) % (2 * math.pi) - math.pi
+from core.angles import wrap_angle
 
 
 def rot(yaw: float) -> np.ndarray:
@@ -20,12 +17,12 @@ def rot(yaw: float) -> np.ndarray:
 def compose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a ∘ b: b expressed in a's frame, then a."""
     xy = np.asarray(a[:2], float) + rot(float(a[2])) @ np.asarray(b[:2], float)
-    return np.array([xy[0], xy[1], wrap(float(a[2]) + float(b[2]))])
+    return np.array([xy[0], xy[1], wrap_angle(float(a[2]) + float(b[2]))])
 
 
 def inverse(a: np.ndarray) -> np.ndarray:
     xy = -(rot(float(a[2])).T @ np.asarray(a[:2], float))
-    return np.array([xy[0], xy[1], wrap(-float(a[2]))])
+    return np.array([xy[0], xy[1], wrap_angle(-float(a[2]))])
 
 
 def to_matrix(a: np.ndarray) -> np.ndarray:

@@ -19,9 +19,7 @@ import math
 
 import numpy as np
 
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2 * math.pi) - math.pi
+from core.angles import wrap_angle
 
 
 def _rot(yaw: float) -> np.ndarray:
@@ -56,7 +54,7 @@ class DriftingOdometry:
             self.reset(true_pose)
             return
         d_body = _rot(self._true[2]).T @ (true_pose[:2] - self._true[:2])
-        d_yaw = _wrap(true_pose[2] - self._true[2])
+        d_yaw = wrap_angle(true_pose[2] - self._true[2])
         dist, turn = float(np.hypot(*d_body)), abs(d_yaw)
         if dist > 0.0 or turn > 0.0:
             d_body = d_body + self._rng.standard_normal(2) * self.drift_m * math.sqrt(dist)
@@ -85,7 +83,7 @@ class DriftingOdometry:
         if self._true is None:
             return np.zeros(3)
         e = self._est - self._true
-        e[2] = _wrap(e[2])
+        e[2] = wrap_angle(e[2])
         return e
 
     def to_estimate(self, vector_xy: np.ndarray) -> np.ndarray:
