@@ -26,9 +26,10 @@ are placed from those (`tasks.anchors.anchor_box`).
 
 from __future__ import annotations
 
+import copy
 import logging
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -152,14 +153,22 @@ class ObjectNames:
         self._first_seen: dict[str, float] = {}
         self._declared: Mapping[str, NamedObject] = {}
 
-    def name(self, name: str, obj: SeenObject, t: float, size: tuple[float, float, float] | None = None) -> None:
+    def name(self, name: str, obj: SeenObject, t: float,
+             size: tuple[float, float, float] | None = None) -> Callable[[], None]:
         """The operator names `obj`, with its full `size` (m) if known: it holds at once, also while a run keeps
-        its own copy of the sequence (any earlier name of it is dropped)."""
+        its own copy of the sequence (any earlier name of it is dropped). Returns what puts the bindings back as
+        they were (for a naming whose sequence is then refused)."""
+        before = copy.deepcopy(self._bindings)
         for other, b in self._bindings.items():
             if b.object_id == obj.id and other != name:
                 b.object_id, b.lost = None, True
         self._bindings[name] = _Binding(obj.id, obj.yaw, obj.extent.copy(), obj.observations, t,
                                         sides_seen=obj.sides_seen, position=obj.position.copy(), size=size)
+
+        def undo() -> None:
+            self._bindings.clear()
+            self._bindings.update(before)
+        return undo
 
     def check_free(self, name: str, object_id: str) -> None:
         """Raise `NameTakenError` unless `name` may name `object_id`: the name is not bound to another object now

@@ -324,7 +324,8 @@ class Runtime:
         """Name a mapped object (`object_<n>`; a scene box id with the ground-truth map) for anchored targets, with
         its full size (m) if known: bound now and saved with the sequence where it is. Naming it again with its own
         name sets its size. `UnknownObjectError` (no such object), `NameTakenError` (the name is bound to another
-        object, or the object has another name), ValueError (a bad name or size: NaN, ≤ 0)."""
+        object, or the object has another name), ValueError (a bad name or size: NaN, ≤ 0), `TargetError` (an
+        anchored target on the name fails its checks where the object is: the name is then not bound)."""
         loop = self.closed_loop
         with loop.using_map() as world_map:
             obj = find_object(world_map, self.world, object_id)
@@ -337,8 +338,15 @@ class Runtime:
                                                 "objects": {**seq.model_dump()["objects"], name: named.model_dump()}})
         with loop.step_lock:  # the control step reads the names (live mode: another thread)
             loop.names.check_free(name, object_id)
-            loop.names.name(name, obj, self.time, size)
-        self.set_sequence(sequence)
+            undo = loop.names.name(name, obj, self.time, size)
+            loop.refresh_objects_view()  # the target checks below see the anchors on the name where it is
+        try:
+            self.set_sequence(sequence)
+        except BaseException:  # refused (or interrupted): the name is not left bound without its sequence
+            with loop.step_lock:
+                undo()
+                loop.refresh_objects_view()
+            raise
         with loop.step_lock:
             loop.refresh_objects_view()  # the name (and its size) show at once, paused too
         return sequence

@@ -87,3 +87,17 @@ def test_the_object_map_lists_what_it_mapped(api: httpx.Client, sim_runtime: Run
     assert 0.0 < near["consistency"] <= 1.0 and near["status"] == "active"
     named = api.put(f"/api/objects/{near['id']}/name", json={"name": "box_a2", "size": [0.6, 0.6, 0.6]}).json()
     assert named["name"] == "box_a2" and named["size"] == [0.6, 0.6, 0.6]
+
+
+def test_a_name_whose_anchored_target_is_out_of_reach_is_refused_and_not_bound(api: httpx.Client,
+                                                                                truth_runtime: Runtime) -> None:
+    """The sequence anchors a reach 3 m over box_3's top; naming the crate box_3 puts that target out of reach:
+    422 with the target check's reason, and the crate stays unnamed (in the map and in the sequence)."""
+    high = ANCHORED.replace("offset: [-0.25, 0, 0.7]", "offset: [0, 0, 3.0]")
+    assert api.put("/api/sequence", json={"yaml": high}).status_code == 200  # box_3 not bound yet: it would wait
+    refused = api.put("/api/objects/crate/name", json={"name": "box_3"})
+    assert refused.status_code == 422, refused.text
+    assert "the arm reaches" in refused.text
+    assert truth_runtime.closed_loop.names.bound() == {}
+    crate = next(o for o in api.get("/api/objects").json()["objects"] if o["id"] == "crate")
+    assert crate["name"] is None
