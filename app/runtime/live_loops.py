@@ -284,6 +284,8 @@ class LiveLoops:
         if late and self.loop.run_state == RunState.RUNNING:
             self.loop.problems.record(ProblemKind.WATCHDOG, state.t, f"control step {state.t - due:.2f} s late")
         self.loop.control(state)
+        if self.loop.config.actuation_delay_s <= 0.0:  # the new plan's first command now, not at the next I/O tick
+            self.loop.command(self.loop.state.t)
         self.loop.measure(self.loop.last_qdot)
 
     def _watch(self) -> None:

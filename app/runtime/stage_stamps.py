@@ -13,6 +13,7 @@ physics step that reached it.
 
 from __future__ import annotations
 
+import threading
 import time
 from collections import deque
 from dataclasses import dataclass
@@ -82,12 +83,14 @@ class ControlStamp:
 
 @dataclass(frozen=True)
 class CommandStamp:
-    """One velocity command: wall and robot time, the base's commanded planar velocity (world), its plan."""
+    """One velocity command: wall and robot time, the base's commanded planar velocity (world), its plan, and the
+    thread that sent it (`io` every command period; `control` for a new plan's first command)."""
 
     wall: float
     t: float
     base_v: tuple[float, float]
     plan: Plan | None
+    thread: str = ""
 
 
 class StageStamps:
@@ -115,7 +118,8 @@ class StageStamps:
             self.frames_integrated[frame.camera] = self.frames_integrated.get(frame.camera, 0) + 1
 
     def command(self, t: float, qdot: np.ndarray, plan: Plan | None) -> None:
-        self.commands.append(CommandStamp(time.perf_counter(), t, (float(qdot[0]), float(qdot[1])), plan))
+        self.commands.append(CommandStamp(time.perf_counter(), t, (float(qdot[0]), float(qdot[1])), plan,
+                                          threading.current_thread().name))
 
     def wall_at(self, t: float) -> float | None:
         """Wall time of the first physics step that reached robot time `t` (None: not in the history)."""

@@ -47,3 +47,18 @@ def test_the_loops_health_is_read_from_the_same_run(run) -> None:
     health = run.health
     assert health["control_steps"] > 0 and 0.0 <= health["control_late_pct"] <= 100.0
     assert health["hand_frames_integrated_hz"] > 0.0 and health["base_frames_integrated_hz"] > 0.0
+
+
+def test_each_new_plan_is_commanded_by_the_control_thread_as_it_is_solved(run) -> None:
+    """Live, with no modelled actuation delay, a plan's first command does not wait for the next I/O tick: the
+    control thread sends it right after the solve (the I/O thread's ticks go on with it after)."""
+    controls = [c for c in run.stamps.controls if c.plan is not None]
+    commands = list(run.stamps.commands)
+    first_by = {}
+    for command in commands:
+        if command.plan is not None and id(command.plan) not in first_by:
+            first_by[id(command.plan)] = command
+    commanded = [first_by[id(c.plan)] for c in controls if id(c.plan) in first_by]
+    assert len(commanded) >= len(controls) - 1  # the last plan may not have been commanded before the stop
+    assert commanded and all(c.thread == "control" for c in commanded), {c.thread for c in commanded}
+    assert any(c.thread == "io" for c in commands)
