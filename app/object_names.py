@@ -298,8 +298,10 @@ class ObjectNames:
 
     def _declared_size(self, name: str, b: _Binding) -> tuple[float, float, float] | None:
         """The size declared for `name`: given with the name, else in the sequence's `objects`."""
+        if b.size is not None:
+            return b.size
         named = self._declared.get(name)
-        return b.size if b.size is not None else None if named is None else named.size
+        return named.size if named is not None else None
 
     def known_size(self, name: str, b: _Binding) -> np.ndarray:
         """The full size of `name`'s box along its binding's axes: declared, else measured where both faces of an
