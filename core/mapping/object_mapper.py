@@ -20,9 +20,9 @@ Per depth frame:
    object grown by tau (its box, or its footprint's columns if it is not box-like, `footprint.py`:
    new surface revealed elsewhere is no change), its submap grows, and every third
    observation its voxels seen through are counted, those seen through three times running carved
-   (a top voxel of an object standing on the floor counts as seen through where the space right under it
-   is, `column_probes.py`: a moved box's old top; free space seen inside its box makes a box-like object
-   hollow, i.e. mapped by its surface);
+   (a voxel of an object standing on the floor counts as seen through where the point right under it is,
+   `column_probes.py`: a moved box's old surface seen against nothing; free space seen inside its box makes
+   a box-like object hollow, i.e. mapped by its surface);
    an unmatched object whose expected-visible surface was seen through is a forced outlier
    (`visibility.py`, `consistency.py`); unseen or occluded objects keep their belief; an object with
    E[v] < theta_stat after more than `min_observations` updates is removed;
@@ -316,13 +316,13 @@ class ObjectMapper:
             obj.carve(p.carve_after_misses)
 
     def _seen_through(self, obj: TrackedObject, view: FrameView) -> np.ndarray:
-        """Mask of the submap voxels (V,) seen through in this frame: the voxel itself, or for a top voxel of an
-        object standing on the floor the column right under it (`column_probes.py`: a moved box's old top)."""
+        """Mask of the submap voxels (V,) seen through in this frame: the voxel itself, or, on an object standing on
+        the floor, the point right under it (`column_probes.py`: a moved box's old surface seen against nothing)."""
         p = self.params
         through = view.classify(obj.world_points) == THROUGH
-        index, probes = obj.top_probes(p.column_probe_m, p.top_band_m)
+        index, probes = obj.column_probes(p.column_probe_m)
         if len(index):
-            through[index] |= view.classify(probes) == THROUGH
+            through[index] |= view.classify(probes, floor_is_free=False) == THROUGH
         return through
 
     def _check_hollow(self, obj: TrackedObject, view: FrameView) -> None:
