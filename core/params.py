@@ -376,11 +376,6 @@ class MappingParams:
     """s for every object (all boxes here are 'likely to move')."""
     carve_after_misses: int = 3
     """A submap voxel seen through in this many carving checks since it was last hit is carved away."""
-    column_probe_m: float = 0.15
-    """A submap voxel of an object standing on the floor is also seen through where the point this far (m) under
-    it is (`core/mapping/column_probes.py`): under its surface is the object, which no ray passes. A moved box's
-    old surface, seen against nothing within the range or out of the image, goes when the space under it is seen
-    free. Deeper than the visibility margin's 0.1 m, so a real top occludes its probes from above."""
     carve_check_every: int = 3
     """A matched object's surface is checked for seen-through voxels every this many observations (a
     projection of the whole submap: carving is slow evidence, no need to pay for it every frame). The

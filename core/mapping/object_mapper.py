@@ -20,9 +20,7 @@ Per depth frame:
    object grown by tau (its box, or its footprint's columns if it is not box-like, `footprint.py`:
    new surface revealed elsewhere is no change), its submap grows, and every third
    observation its voxels seen through are counted, those seen through three times running carved
-   (a voxel of an object standing on the floor counts as seen through where the point right under it is,
-   `column_probes.py`: a moved box's old surface seen against nothing; free space seen inside its box makes
-   a box-like object hollow, i.e. mapped by its surface);
+   (and free space seen inside its box makes a box-like object hollow, i.e. mapped by its surface);
    an unmatched object whose expected-visible surface was seen through is a forced outlier
    (`visibility.py`, `consistency.py`); unseen or occluded objects keep their belief; an object with
    E[v] < theta_stat after more than `min_observations` updates is removed;
@@ -308,22 +306,12 @@ class ObjectMapper:
         obj.saw_from(view.camera_position)
         carve_check = obj.observations % p.carve_check_every == 0
         if carve_check:
-            obj.submap.mark_seen_through(self._seen_through(obj, view))
+            obj.submap.mark_seen_through(view.classify(obj.world_points) == THROUGH)
             self._check_hollow(obj, view)
             self._check_completion(obj, view)
         obj.integrate(seen.points, view.camera_position)
         if carve_check:
             obj.carve(p.carve_after_misses)
-
-    def _seen_through(self, obj: TrackedObject, view: FrameView) -> np.ndarray:
-        """Mask of the submap voxels (V,) seen through in this frame: the voxel itself, or, on an object standing on
-        the floor, the point right under it (`column_probes.py`: a moved box's old surface seen against nothing)."""
-        p = self.params
-        through = view.classify(obj.world_points) == THROUGH
-        index, probes = obj.column_probes(p.column_probe_m)
-        if len(index):
-            through[index] |= view.classify(probes, floor_is_free=False) == THROUGH
-        return through
 
     def _check_hollow(self, obj: TrackedObject, view: FrameView) -> None:
         """Free space seen inside a box-like object's box (an L of walls whose box spans the corridor

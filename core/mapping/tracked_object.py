@@ -19,7 +19,6 @@ from enum import Flag, auto
 import numpy as np
 
 from core.mapping.box_fit import BoxFit, fit_upright_box, seen_sides
-from core.mapping.column_probes import column_probes
 from core.mapping.completion import Completion
 from core.mapping.footprint import Footprint
 from core.mapping.submap import ObjectSubmap
@@ -263,13 +262,6 @@ class TrackedObject:
         local = self.completion.samples(self.fit, -self.T_world_object[2, 3])
         R, t = self.T_world_object[:3, :3], self.T_world_object[:3, 3]
         return local @ R.T + t
-
-    def column_probes(self, depth_m: float) -> tuple[np.ndarray, np.ndarray]:
-        """Indices of the submap voxels probed and world points `depth_m` under each, where free space seen counts
-        as the voxel seen through (`column_probes.py`; none unless the object stands on the floor)."""
-        index, local = column_probes(self.submap.points, self.fit, -self.T_world_object[2, 3], depth_m)
-        R, t = self.T_world_object[:3, :3], self.T_world_object[:3, 3]
-        return index, local @ R.T + t
 
     def saw_from(self, camera_world: np.ndarray) -> None:
         """A camera at this world position observed the object (which sides were seen)."""

@@ -127,10 +127,8 @@ class FrameView:
         slack = radius * np.sqrt(1.0 + max(half_x, half_y) ** 2)
         return abs(c[0]) <= half_x * z + slack and abs(c[1]) <= half_y * z + slack
 
-    def classify(self, points: np.ndarray, floor_is_free: bool = True) -> np.ndarray:
-        """Label every world point (N×3): NOT_EXPECTED, HIT, THROUGH, OCCLUDED or UNSEEN. With `floor_is_free`
-        False a floor return is a return like any other (for points that may lie near the floor: the column probes
-        under a surface, `column_probes.py`): a point just above the floor is hit by it, one below occluded."""
+    def classify(self, points: np.ndarray) -> np.ndarray:
+        """Label every world point (N×3): NOT_EXPECTED, HIT, THROUGH, OCCLUDED or UNSEEN."""
         labels = np.zeros(len(points), dtype=np.int8)
         if len(points) == 0:
             return labels
@@ -145,7 +143,7 @@ class FrameView:
         idx = np.nonzero(inside)[0]
         vi, ui = v[idx].astype(int), u[idx].astype(int)
         raw = self.returns_at(vi, ui)
-        d = self.beyond_floor(raw, vi, ui) if floor_is_free else np.where(raw > 0.0, raw, np.inf)
+        d = self.beyond_floor(raw, vi, ui)
         zi, mi = z[idx], margin[idx]
         lab = np.full(len(idx), HIT, dtype=np.int8)
         lab[d < zi - mi] = OCCLUDED
@@ -156,7 +154,7 @@ class FrameView:
         lab[silent & ~self.floor_within_range(vi, ui)] = NOT_EXPECTED
         beyond = np.nonzero((d > zi + mi) & (raw > 0.0))[0]
         if len(beyond):
-            near = self.patch_min(vi[beyond], ui[beyond], floor_is_free)
+            near = self.patch_min(vi[beyond], ui[beyond])
             lab[beyond[near > zi[beyond] + mi[beyond]]] = THROUGH
         labels[idx] = lab
         return labels
@@ -193,17 +191,16 @@ class FrameView:
             depth = np.where(ray_dz < 0.0, drop / ray_dz, np.inf)
         return depth < self.range_m
 
-    def patch_min(self, v: np.ndarray, u: np.ndarray, floor_is_free: bool = True) -> np.ndarray:
-        """Nearest return (m) within ±`patch_px` pixels of each pixel (v, u); the floor counts as infinitely far
-        (with `floor_is_free`), and so do pixels without a return (they say nothing, so they cannot hold a surface
-        point back from being seen through by its returning neighbours)."""
+    def patch_min(self, v: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Nearest return (m) within ±`patch_px` pixels of each pixel (v, u); the floor counts as infinitely far,
+        and so do pixels without a return (they say nothing, so they cannot hold a surface point back from
+        being seen through by its returning neighbours)."""
         r = self.patch_px
         h, w = self.depth.shape
         off = np.arange(-r, r + 1)
         vv = np.clip(v[:, None, None] + off[None, :, None], 0, h - 1)
         uu = np.clip(u[:, None, None] + off[None, None, :], 0, w - 1)
-        raw = self.depth[vv, uu].astype(float)
-        d = self.beyond_floor(raw, vv, uu) if floor_is_free else np.where(raw > 0.0, raw, np.inf)
+        d = self.beyond_floor(self.depth[vv, uu].astype(float), vv, uu)
         return d.reshape(len(v), -1).min(axis=1)
 
 
