@@ -3,11 +3,7 @@
 The observed segment (world) is aligned to the object's submap surface (world, at the current pose) by
 point-to-plane ICP solved directly for the motion a box on the floor (or on another box) can make:
 translation in x, y, z and yaw about the vertical through the segment's centroid (4 DOF, Gauss-Newton).
-Target normals come from the submap itself. Only the directions the observation constrains are solved for:
-one face seen says nothing about a slide along it (nor about z), and Gauss-Newton there would move the box by
-whatever the noise and the face's edges suggest (a static box slid 0.41 m along the face it showed; the
-localization's degeneracy test, `core/localization/degeneracy.py`, is the same idea on the robot's pose).
-Single-threaded numpy and scipy's k-d tree on purpose: the same
+Target normals come from the submap itself. Single-threaded numpy and scipy's k-d tree on purpose: the same
 inputs give the same bits, which lockstep runs depend on (open3d's ICP, used before, summed in an order that
 varied from call to call, and a 6-DOF result projected to the plane could slide a static box along itself).
 """
@@ -22,18 +18,6 @@ from scipy.spatial import cKDTree  # pyright: ignore[reportAttributeAccessIssue]
 
 MIN_POINTS = 20
 """Clouds smaller than this are not aligned (identity, fitness 0): too few points to tell a push from noise."""
-MIN_INFORMATION_RATIO = 0.1
-"""A direction of the planar motion (x, y, L·yaw) is solved for only when the observation's information along it
-is at least this fraction of its best-constrained direction's (and at least `MIN_INFORMATION` per point). L is
-the object's RMS horizontal radius, so yaw counts as the displacement it makes at the object's edge. A box face
-seen whole with a sliver of its side: all three directions; a 0.2 m strip of one face (what turned a static box
-0.41 m along itself): only across the face (along it 0.001, yaw 0.03 of the across information)."""
-MIN_INFORMATION = 0.02
-"""Per point, unit normals (a face seen whole gives 1 along its normal): a box's top alone constrains nothing
-planar, only the submap's normals along its edges lean a little sideways."""
-MIN_INFORMATION_Z = 0.2
-"""z is solved for only when this much of the per-point information is vertical (a top seen): the submap's
-normals along a box's upper edges lean 10–20 % into the top, which must not lift a box seen from the side."""
 STEP_TOL = 1e-5
 """ICP stops when an iteration moves the segment by less than this (m, and rad of yaw)."""
 
@@ -41,13 +25,11 @@ STEP_TOL = 1e-5
 @dataclass(frozen=True)
 class Alignment:
     """T (4×4) moving the observation onto the submap, the fraction of observed points with a
-    correspondence, the RMSE of those correspondences (m), and how many of the 4 directions
-    (x, y, z, yaw) the observation constrained (the others were not moved along)."""
+    correspondence, and the RMSE of those correspondences (m)."""
 
     T: np.ndarray
     fitness: float
     rmse_m: float
-    constrained_dof: int = 4
 
 
 def surface_normals(points: np.ndarray, tree: cKDTree, neighbours: int) -> np.ndarray:
@@ -78,8 +60,6 @@ def align(source: np.ndarray, target: np.ndarray, max_correspondence_m: float, m
     tree = cKDTree(target)
     normals = surface_normals(target, tree, normal_neighbours)
     T = np.eye(4)
-    dof = 0
-    lever = max(float(np.sqrt(np.mean(np.sum((target[:, :2] - target[:, :2].mean(axis=0)) ** 2, axis=1)))), 1e-3)
     for _ in range(max_iterations):
         moved = source @ T[:3, :3].T + T[:3, 3]
         dist, idx = tree.query(moved, distance_upper_bound=max_correspondence_m)
@@ -91,29 +71,11 @@ def align(source: np.ndarray, target: np.ndarray, max_correspondence_m: float, m
         centre = p.mean(axis=0)
         arm = p - centre
         J = np.c_[n, n[:, 1] * arm[:, 0] - n[:, 0] * arm[:, 1]]
-        delta, dof = _constrained_step(J, residual, lever)
+        delta = np.linalg.solve(J.T @ J + 1e-9 * np.eye(4), -J.T @ residual)
         T = _yaw_about(float(delta[3]), centre, delta[:3]) @ T
         if np.linalg.norm(delta[:3]) < STEP_TOL and abs(delta[3]) < STEP_TOL:
             break
-    result = _score(source, target, tree, T, max_correspondence_m)
-    return Alignment(result.T, result.fitness, result.rmse_m, dof)
-
-
-def _constrained_step(J: np.ndarray, residual: np.ndarray, lever_m: float) -> tuple[np.ndarray, int]:
-    """The Gauss-Newton step (dx, dy, dz, dyaw): the planar part restricted to the eigen-directions of the
-    per-point information the observation constrains (`MIN_INFORMATION_RATIO`, `MIN_INFORMATION`; yaw weighed at
-    `lever_m`), z on its own when a top was seen (`MIN_INFORMATION_Z`); and how many of the four were solved."""
-    step = np.zeros(4)
-    planar = [0, 1, 3]
-    Js = J[:, planar] * np.array([1.0, 1.0, 1.0 / lever_m])
-    values, vectors = np.linalg.eigh(Js.T @ Js / len(J))
-    strong = values >= max(MIN_INFORMATION_RATIO * float(values[-1]), MIN_INFORMATION)
-    g = vectors[:, strong].T @ (Js.T @ residual) / len(J)
-    step[planar] = (vectors[:, strong] @ (-g / values[strong])) * np.array([1.0, 1.0, 1.0 / lever_m])
-    info_z = float(J[:, 2] @ J[:, 2]) / len(J)
-    if info_z >= MIN_INFORMATION_Z:
-        step[2] = -float(J[:, 2] @ residual) / len(J) / info_z
-    return step, int(np.sum(strong)) + int(info_z >= MIN_INFORMATION_Z)
+    return _score(source, target, tree, T, max_correspondence_m)
 
 
 def _score(source: np.ndarray, target: np.ndarray, tree: cKDTree, T: np.ndarray,
