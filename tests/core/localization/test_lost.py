@@ -179,26 +179,3 @@ def test_an_object_the_search_found_no_jump_against_is_set_aside_and_the_view_do
     assert len(loc.lost.episodes) == 1 and not loc.lost.lost, verdicts
     assert Verdict.INCONSISTENT not in verdicts, verdicts
     assert loc.take_change_evidence() == (), "set aside, not reported as moved"
-
-
-def test_frames_wait_only_for_a_verdict_that_could_refuse_them():
-    """A frame waits for the next registration at or after it only when that registration could find a jump: with no
-    trusted surface in view (the latest verdict had nothing to judge by) it goes in at once; a degenerate or
-    unconverged verdict outside a streak confirms the frames up to it (before, they waited `hold_max_s`, 1 s); in a
-    streak they still wait."""
-    from core.localization.lost import LostWatch
-    from core.params import LocalizationParams
-
-    watch = LostWatch(LocalizationParams())
-    assert watch.fate(0.1, 0.15) == HOLD  # no verdict yet
-    watch.observe(Verdict.NO_REFERENCE, 0.2, localized=False)
-    assert watch.fate(0.3, 0.32) == INTEGRATE  # nothing trusted in view: no verdict could refuse it
-    watch.observe(Verdict.ACCEPTED, 0.4, localized=True)
-    assert watch.fate(0.5, 0.52) == HOLD  # trusted surface in view: the next registration may find a jump
-    watch.observe(Verdict.DEGENERATE, 0.6, localized=True)
-    assert watch.fate(0.55, 0.62) == INTEGRATE and watch.fate(0.65, 0.7) == HOLD
-    watch.observe(Verdict.INCONSISTENT, 0.8, localized=True)  # a streak starts
-    watch.observe(Verdict.DEGENERATE, 1.0, localized=True)
-    assert watch.fate(0.9, 1.02) == HOLD
-    watch.observe(Verdict.NO_REFERENCE, 1.2, localized=True)  # ends the streak: nothing to judge since
-    assert watch.fate(1.3, 1.31) == INTEGRATE
