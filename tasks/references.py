@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.angles import wrap_angle
 from core.params import SequencerParams
 from core.types import BaseReference, EEReference, References
 from tasks.ready_hand import ReadyHand
@@ -112,7 +111,7 @@ def manipulation_stance(target: np.ndarray, base_start: np.ndarray, reach_m: flo
     u = d / dist
     xy = target[:2] - reach_m * u if dist > reach_m else base_start[:2]
     yaw = float(np.arctan2(u[1], u[0]))
-    yaw = base_start[2] + wrap_angle(yaw - base_start[2])
+    yaw = base_start[2] + (yaw - base_start[2] + np.pi) % (2 * np.pi) - np.pi
     return np.array([xy[0], xy[1], yaw])
 
 
