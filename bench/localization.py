@@ -35,6 +35,7 @@ from bench.experiments.e4_long_term import SEED, lap_sequence, layouts, run_sequ
 from bench.experiments.trials import quiet_logs, runtime_config
 from bench.report import bench_args, percentile, write_result
 from core.angles import wrap_angle
+from core.localization import se2
 from core.localization.gates import FAILURES, Verdict
 from core.localization.localizer import DEGENERATE
 from core.params import LocalizationParams
@@ -54,12 +55,17 @@ class _Track:
     """`on_control`: the loop's pose and the truth at every control step, and the lap each belongs to."""
 
     def __init__(self) -> None:
-        self.rows: list[tuple[float, int, np.ndarray, np.ndarray]] = []
+        self.rows: list[tuple[float, int, np.ndarray, np.ndarray, np.ndarray]] = []
+        """(time, lap, estimate, truth, odometry): x, y, yaw each; odometry is the same run's wheel odometry in the
+        world frame (the estimate without its corrections), so the two compare on one path and one drift."""
         self.lap = 0
 
     def __call__(self, rt: Runtime) -> None:
         truth = rt.backend.true_state().q[:3]  # type: ignore[attr-defined]
-        self.rows.append((rt.time, self.lap, rt.state.q[:3].copy(), truth.copy()))
+        estimate = rt.state.q[:3].copy()
+        loc = rt.closed_loop.localizer
+        odometry = estimate if loc is None else se2.compose(se2.inverse(loc.world_from_odom), estimate)
+        self.rows.append((rt.time, self.lap, estimate, truth.copy(), odometry))
 
 
 def move_boxes(rt: Runtime, share: float, distance_m: float, rng: np.random.Generator) -> int:

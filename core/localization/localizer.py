@@ -63,6 +63,8 @@ class Correction:
     jump: bool = True
     """A χ² refusal: whether its innovation (along the constrained directions) is as large as a jump
     (`lost_jump_m`, `lost_jump_rad`); a smaller one says the filter was too sure, not that the base slipped."""
+    innovation: np.ndarray | None = None
+    """A χ² refusal: measured ⊖ predicted (x, y, yaw) along the constrained directions."""
 
 
 class Localizer:
@@ -190,27 +192,34 @@ class Localizer:
                                    p.radius_min_m, p.radius_max_m))
         result = registration.register(target, source, frame.T_world_camera, radius, p.max_iterations)
         ms = result.ms
-        # objects are judged where the pose is best known: at the prediction when it is confident (a moved box
-        # in view can drag the alignment and make a still one look off), else after the alignment
-        confident = radius <= p.radius_min_m + 1e-9
-        judged_at = frame.T_world_camera if confident else result.T_world_camera
-        disagreeing, judged = self._off_objects(ref, target, source, judged_at)
-        if disagreeing and 2 * len(disagreeing) > judged:  # most objects judged are off: the pose is in doubt
+        disagreeing, judged, vouched = self._judge_objects(ref, target, source, frame.T_world_camera,
+                                                           result.T_world_camera, radius <= p.radius_min_m + 1e-9)
+        if disagreeing and 2 * len(disagreeing) > judged and not vouched:  # most objects off: the pose is in doubt
             return self._record(Correction(frame.t, Verdict.INCONSISTENT, registration_ms=ms, reference_ms=ref_ms,
                                            off=disagreeing))
         if disagreeing:
-            self.set_aside(disagreeing, frame.t)
-            if self.frozen is not None and p.refreeze_disagreeing:
-                self.frozen.forget(disagreeing)
-                surface = self.frozen.surface
-            with self.lock:
-                self._evidence.extend(disagreeing)
+            surface = self._leave_out(disagreeing, frame.t, surface)
             ref, target, more_ms = self.prepared_reference(surface, np.asarray(base_pose[:2], float))
             ref_ms += more_ms
             result = registration.register(target, source, frame.T_world_camera, radius, p.max_iterations)
             ms += result.ms
         pts = np.asarray(source.points())[:, :3]
-        return self._record(self._judge(frame, np.asarray(base_pose, float), result, pts, ms, ref_ms, disagreeing))
+        correction = self._judge(frame, np.asarray(base_pose, float), result, pts, ms, ref_ms, disagreeing)
+        if correction.verdict == Verdict.CHI2 and not correction.jump and self._view_agrees(
+                ref, target, source, result.T_world_camera):
+            self._grow(correction.innovation)
+        return self._record(correction)
+
+    def _leave_out(self, ids: tuple[int, ...], t: float, surface: ReferenceSurface | None
+                   ) -> ReferenceSurface | None:
+        """Set objects aside as change evidence for the map; the surface to register against without them."""
+        self.set_aside(ids, t)
+        if self.frozen is not None and self.params.refreeze_disagreeing:
+            self.frozen.forget(ids)
+            surface = self.frozen.surface
+        with self.lock:
+            self._evidence.extend(ids)
+        return surface
 
     def _judge(self, frame: DepthFrame, base_pose: np.ndarray, result: registration.Result, source_points: np.ndarray,
                ms: float, ref_ms: float, disagreeing: tuple[int, ...]) -> Correction:
@@ -231,8 +240,9 @@ class Localizer:
             update = self.filter.update(base_pose, measured, dirs, p.sigma_xy_m, p.sigma_yaw_rad,
                                         5.0 * p.degenerate_information)
             if not gates.chi2_passes(update.nis, update.dof, p):
-                jump = self._admit(_constrained_innovation(measured, base_pose, dirs))
-                return replace(base, verdict=Verdict.CHI2, dof=update.dof, nis=update.nis, jump=jump)
+                innovation = _constrained_innovation(measured, base_pose, dirs)
+                return replace(base, verdict=Verdict.CHI2, dof=update.dof, nis=update.nis,
+                               jump=self._is_jump(innovation), innovation=innovation)
             self.filter.P = update.P
             apply_t = frame.t + p.processing_s
             self.schedule(apply_t, update.delta)
@@ -242,35 +252,68 @@ class Localizer:
         return replace(base, delta=update.delta, dof=update.dof, nis=update.nis, apply_t=apply_t,
                        pose=se2.compose(update.delta, base_pose))
 
-    def _admit(self, innovation: np.ndarray) -> bool:
+    def _is_jump(self, innovation: np.ndarray) -> bool:
         """Whether a refused registration's innovation (x, y, yaw) is as large as a jump (`lost_jump_m`,
-        `lost_jump_rad`); if not, the filter was too sure of itself: P grows by it, so the next frame may pass
-        (call under `lock`)."""
+        `lost_jump_rad`)."""
         p = self.params
-        jump = bool(np.hypot(innovation[0], innovation[1]) >= p.lost_jump_m or abs(innovation[2]) >= p.lost_jump_rad)
-        if not jump:
-            self.filter.P = self.filter.P + np.diag(np.asarray(innovation, float) ** 2)
-        return jump
+        return bool(np.hypot(innovation[0], innovation[1]) >= p.lost_jump_m or abs(innovation[2]) >= p.lost_jump_rad)
+
+    def _grow(self, innovation: np.ndarray | None) -> None:
+        """A χ² refusal smaller than a jump that no moved object explains: the filter was too sure of itself, so P
+        grows by the innovation and the next frame may pass."""
+        if innovation is not None:
+            with self.lock:
+                self.filter.P = self.filter.P + np.diag(np.asarray(innovation, float) ** 2)
 
     def _off_objects(self, ref: Reference, target: registration.Target, source, T: np.ndarray
                      ) -> tuple[tuple[int, ...], int]:
         """Objects whose frame points, placed by the camera pose T, sit farther than `disagreement_m` (median)
         from the reference, and how many objects were judged (when most of them are off, the pose, not the
         objects, is in doubt: the caller's inconsistent verdict)."""
+        residual = self._object_residuals(ref, target, source, T)
+        return tuple(i for i, d in residual.items() if d > self.params.disagreement_m), len(residual)
+
+    def _object_residuals(self, ref: Reference, target: registration.Target, source, T: np.ndarray
+                          ) -> dict[int, float]:
+        """Per object with at least `min_object_points` frame points near it (camera pose T): the median distance
+        (m) of those points from the reference."""
         p = self.params
         pts = np.asarray(source.points())[:, :3]
         idx, d = target.nearest(pts @ T[:3, :3].T + T[:3, 3])
         ids = ref.object_ids[np.clip(idx, 0, len(ref.object_ids) - 1)]
         near = (idx >= 0) & (d < p.radius_max_m) & (ids != FLOOR_ID)
-        judged, off = 0, []
+        residual: dict[int, float] = {}
         for i in np.unique(ids[near]):
             mine = near & (ids == i)
             if np.sum(mine) < p.min_object_points or i < 0:
                 continue
-            judged += 1
-            if float(np.median(d[mine])) > p.disagreement_m:
-                off.append(int(i))
-        return tuple(off), judged
+            residual[int(i)] = float(np.median(d[mine]))
+        return residual
+
+    def _view_agrees(self, ref: Reference, target: registration.Target, source, registered: np.ndarray) -> bool:
+        """Whether at least two objects were judged and every one fits at the registered pose: only a shift the
+        whole view agrees on says the filter was too sure of itself. One object alone may be a box that moved out
+        of view of anything else (a pick box moved 0.4 m at a lap's start, the only object in view, had P grown
+        by its 0.3 m pull and the next frame took it: 22 cm off for the lap)."""
+        residual = self._object_residuals(ref, target, source, registered)
+        return len(residual) >= 2 and all(d <= self.params.disagreement_m for d in residual.values())
+
+    def _judge_objects(self, ref: Reference, target: registration.Target, source, predicted: np.ndarray,
+                       aligned: np.ndarray, confident: bool) -> tuple[tuple[int, ...], int, bool]:
+        """The objects off their surfaces, how many were judged, and whether a still object vouched for the
+        prediction. Objects are judged where the pose is best known: at the prediction when it is confident, else
+        after the alignment; but a moved box within the correspondence radius drags the alignment, and when most of
+        the view moved alike a vote after it finds the still box off (two of three boxes moved 0.07-0.12 m: the
+        still one was left out and the two moved ones taken). So an object that fits the prediction and not the
+        aligned pose vouches for the prediction: then the objects off at the prediction are the moved ones."""
+        dm = self.params.disagreement_m
+        at_prediction = self._object_residuals(ref, target, source, predicted)
+        if confident:
+            return tuple(i for i, d in at_prediction.items() if d > dm), len(at_prediction), False
+        at_aligned = self._object_residuals(ref, target, source, aligned)
+        vouched = any(d <= dm and at_aligned.get(i, math.inf) > dm for i, d in at_prediction.items())
+        judged = at_prediction if vouched else at_aligned
+        return tuple(i for i, d in judged.items() if d > dm), len(judged), vouched
 
     def set_aside(self, ids: Iterable[int], t: float) -> None:
         """Leave objects out of the reference until robot time t + `exclusion_s` (a registration's disagreeing objects;
