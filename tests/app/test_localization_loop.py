@@ -93,26 +93,30 @@ def test_localization_against_the_scene_at_least_halves_the_drift_of_odometry_al
 
 @pytest.mark.slow
 def test_localization_against_the_self_built_map_bounds_the_drift_odometry_alone_exceeds():
-    """E4's aisle lap 1 (seed 0, whole sensor model, object map, HTMPC), registering against the map the run
-    builds itself (no prior map, no oracle). Lockstep runs are bit-identical, so this is one measurement:
-    RMSE 8.5 cm with localization against 10.5 cm for odometry alone, max 15.8 against 21.1 cm (e63a456); since the
-    arm's posture task and the anchors' map refit (2026-11-27) RMSE 7.8 against 10.5 cm, max 22.9 against 22.1 cm:
-    the largest error is at the lap's end, where the self-built reference has taken in the drift (issue 25 open).
-    Since picks turn the base into their stance first (h34-aisle, 2026-11-27) RMSE 9.4 against 10.1 cm, max 28.0
-    against 27.8 cm: the two turns in place at each stop (781° turned in the lap against 616°) add heading drift
-    that the registrations do not take out (heading error at 30 s 1.5° against 0.5°; not traced further).
-    Asserted with a margin for changes elsewhere (mapping, control) that move the lap: the RMSE below odometry's,
-    the max within 1.1x odometry's; the issue's 5 cm / 15 cm stay open."""
-    odometry = pose_errors(run(0, 1, False)["rows"])[2]
-    assert odometry.max() > 0.15, f"the premise: odometry alone drifts past 0.15 m (max {odometry.max():.3f} m)"
-    result = run(0, 1, True)
-    localized = pose_errors(result["rows"])[2]
-    assert result["counts"].get(Verdict.ACCEPTED.value, 0) > 50
-    rmse = (float(np.sqrt(np.mean(localized**2))), float(np.sqrt(np.mean(odometry**2))))
-    summary = f"max error {localized.max():.3f} m, RMSE {rmse[0]:.3f} m (odometry alone {odometry.max():.3f}, " \
-              f"{rmse[1]:.3f} m)"
-    assert localized.max() < 1.1 * odometry.max(), summary
-    assert rmse[0] < rmse[1], summary
+    """E4's aisle lap 1 on four seeds (whole sensor model, object map, HTMPC), registering against the map the run
+    builds itself (no prior map, no oracle), each against the same run's wheel odometry (same path, same random
+    walk). Measured 2026-11-27 (docs/decisions.md, "A moved box pulled a right pose"): localized RMSE 14.0 / 4.2 /
+    7.6 / 8.0 cm against odometry 10.9 / 15.0 / 8.0 / 5.6 cm, max 27.6 / 8.3 / 14.8 / 14.4 against 32.5 / 23.1 / 19.8
+    / 11.3 cm. On a single seed either can win (a self-built reference follows the drift where it is new, and
+    registrations against faces fitted a degree off pull the heading), so the property is asserted over the seeds:
+    the mean RMSE below odometry's and the worst error below odometry's worst. The issue's 5 cm / 15 cm stay open."""
+    rmse_loc, rmse_odo, max_loc, max_odo, accepted = [], [], [], [], 0
+    for seed in range(4):
+        result = run(seed, 1, True)
+        rows = result["rows"]
+        localized = pose_errors(rows)[2]
+        odometry = np.array([np.linalg.norm(r[4][:2] - r[3][:2]) for r in rows])
+        rmse_loc.append(float(np.sqrt(np.mean(localized**2))))
+        rmse_odo.append(float(np.sqrt(np.mean(odometry**2))))
+        max_loc.append(float(localized.max()))
+        max_odo.append(float(odometry.max()))
+        accepted += result["counts"].get(Verdict.ACCEPTED.value, 0)
+    summary = f"RMSE {np.round(rmse_loc, 3)} against odometry {np.round(rmse_odo, 3)}, max {np.round(max_loc, 3)} " \
+              f"against {np.round(max_odo, 3)}"
+    assert max(max_odo) > 0.15, f"the premise: odometry alone drifts past 0.15 m ({summary})"
+    assert accepted > 200, summary
+    assert np.mean(rmse_loc) < np.mean(rmse_odo), summary
+    assert max(max_loc) < max(max_odo), summary
 
 
 @pytest.mark.slow
