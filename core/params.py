@@ -576,6 +576,10 @@ class LocalizationParams:
     """An object's disagreement is judged on at least this many of the frame's points near it."""
     exclusion_s: float = 10.0
     """A disagreeing object stays out of the reference this long (s): the map meanwhile re-places or removes it."""
+    agreed_recently_s: float = 1.0
+    """An object that fitted an accepted registration within this long (s of robot time) and now pulls a refused one
+    has moved: the pose cannot have jumped that far since without a slip (docs/decisions.md, "A moved box pulled a
+    right pose")."""
     freeze_reference: bool = False
     """Register against each trusted object's surface where it was when first trusted
     (`core/localization/frozen_surfaces.py`), not where the map has it now (the map re-places objects onto frames

@@ -84,6 +84,8 @@ class Localizer:
         self._odom: np.ndarray | None = None
         self._last_registration_t = -math.inf
         self._excluded: dict[int, float] = {}
+        self._agreed: dict[int, float] = {}
+        """Object id → the latest frame time it fitted an accepted registration."""
         self._evidence: list[int] = []
         self._target: tuple[ReferenceSurface | None, tuple, Reference, registration.Target] | None = None
         self.tally: Counter[str] = Counter()
@@ -205,10 +207,28 @@ class Localizer:
             ms += result.ms
         pts = np.asarray(source.points())[:, :3]
         correction = self._judge(frame, np.asarray(base_pose, float), result, pts, ms, ref_ms, disagreeing)
-        if correction.verdict == Verdict.CHI2 and not correction.jump and self._view_agrees(
-                ref, target, source, result.T_world_camera):
-            self._grow(correction.innovation)
+        fit = self._object_residuals(ref, target, source, result.T_world_camera)
+        if correction.verdict == Verdict.CHI2 and not correction.jump:
+            moved = self._agreed_before(fit, frame.t)
+            if moved:  # they fitted the pose a moment ago and now pull it: they moved, the base did not jump
+                surface = self._leave_out(moved, frame.t, surface)
+                ref, target, more_ms = self.prepared_reference(surface, np.asarray(base_pose[:2], float))
+                result = registration.register(target, source, frame.T_world_camera, radius, p.max_iterations)
+                correction = self._judge(frame, np.asarray(base_pose, float), result, pts, ms + result.ms,
+                                         ref_ms + more_ms, disagreeing + moved)
+                fit = self._object_residuals(ref, target, source, result.T_world_camera)
+            elif self._view_agrees(fit):
+                self._grow(correction.innovation)
+        if correction.verdict == Verdict.ACCEPTED:
+            self._agreed.update({i: frame.t for i, d in fit.items() if d <= p.disagreement_m})
         return self._record(correction)
+
+    def _agreed_before(self, fit: dict[int, float], t: float) -> tuple[int, ...]:
+        """The objects that fit a χ²-refused pose and fitted an accepted one within `agreed_recently_s`: the pose
+        cannot have moved that far since (the refusal is under a jump), so they did."""
+        p = self.params
+        return tuple(i for i, d in fit.items()
+                     if d <= p.disagreement_m and t - self._agreed.get(i, -math.inf) <= p.agreed_recently_s)
 
     def _leave_out(self, ids: tuple[int, ...], t: float, surface: ReferenceSurface | None
                    ) -> ReferenceSurface | None:
@@ -290,13 +310,12 @@ class Localizer:
             residual[int(i)] = float(np.median(d[mine]))
         return residual
 
-    def _view_agrees(self, ref: Reference, target: registration.Target, source, registered: np.ndarray) -> bool:
-        """Whether at least two objects were judged and every one fits at the registered pose: only a shift the
-        whole view agrees on says the filter was too sure of itself. One object alone may be a box that moved out
-        of view of anything else (a pick box moved 0.4 m at a lap's start, the only object in view, had P grown
-        by its 0.3 m pull and the next frame took it: 22 cm off for the lap)."""
-        residual = self._object_residuals(ref, target, source, registered)
-        return len(residual) >= 2 and all(d <= self.params.disagreement_m for d in residual.values())
+    def _view_agrees(self, fit: dict[int, float]) -> bool:
+        """Whether at least two objects were judged and every one fits at the registered pose (`fit`: residuals
+        there): only a shift the whole view agrees on says the filter was too sure of itself. One object alone may be
+        a box that moved out of view of anything else (a pick box moved 0.4 m at a lap's start, the only object in
+        view, had P grown by its 0.3 m pull and the next frame took it: 22 cm off for the lap)."""
+        return len(fit) >= 2 and all(d <= self.params.disagreement_m for d in fit.values())
 
     def _judge_objects(self, ref: Reference, target: registration.Target, source, predicted: np.ndarray,
                        aligned: np.ndarray, confident: bool) -> tuple[tuple[int, ...], int, bool]:
