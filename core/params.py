@@ -627,7 +627,8 @@ class LocalizationParams:
     hold_frames: bool = True
     """Frames wait for the verdict of the next registration at or after their exposure before the map integrates
     them (at most 1 / `rate_hz` later), so that frames at a pose that has jumped (a slip) are never integrated:
-    dropped when the localizer gets lost. False: frames are integrated as they come (a slip's first frames go in)."""
+    dropped when the localizer gets lost. Not while the latest registration had no trusted surface in view (no
+    verdict could refuse them). False: frames are integrated as they come (a slip's first frames go in)."""
     hold_max_s: float = 1.0
     """A frame waits at most this long (s of robot time past its exposure) for a verdict while nothing is refused
     (no base-camera registration came): then it is integrated."""

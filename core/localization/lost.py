@@ -8,10 +8,12 @@ meanwhile, and the global search that ends it (docs/method.md, "State estimation
   reference, too few points), ends it. Degenerate and not converged ones neither start nor end it (a frame that fits
   the floor alone says nothing about a jump, and GICP stopping at its iteration cap says little).
 - **Frames wait** (`LocalizationParams.hold_frames`): a frame is integrated only once a registration at or after its
-  exposure ended no streak (`confirmed_t`); while a streak runs frames wait (and are dropped after `hold_max_s`,
-  as are frames up to a refused one that no verdict confirmed); when the localizer gets lost, every
-  frame not confirmed is dropped, and so is every frame until the re-anchoring has been applied: the map never
-  integrates a frame at a pose that has jumped.
+  exposure found no jump (`confirmed_t`: accepted, nothing to judge, or, outside a streak, degenerate or not
+  converged), and at once while the latest registration had no trusted surface in view (no verdict could refuse
+  it; held, E3's frames waited up to 0.25 s and pushes 0.5 m ahead were hit); while a streak runs frames wait
+  (and are dropped after `hold_max_s`, as are frames up to a refused one that no verdict confirmed); when the
+  localizer gets lost, every frame not confirmed is dropped, and so is every frame until the re-anchoring has been
+  applied: the map never integrates a frame at a pose that has jumped where a registration could tell.
 - **Lost.** A streak of at least `lost_min_refusals` refusals over at least `lost_after_s`: the loop holds the base
   (brakes to rest and plans nothing), and once the base is at rest each frame the localizer wants runs a global
   search (`global_search.py`) instead of a registration, one at a time, its outcome due `search_processing_s` after
@@ -102,6 +104,8 @@ class LostWatch:
         self.failed: str | None = None
         """Why the localizer gave up ("lost localization: …"); the loop faults with it."""
         self.episodes: list[Episode] = []
+        self.nothing_to_judge = False
+        """The latest registration had nothing to judge by (no trusted surface in view): frames are not held."""
         self._last_pose: np.ndarray | None = None
         self._suspects: set[int] = set()
         """The objects the current streak's inconsistent registrations found off their surfaces."""
@@ -117,6 +121,7 @@ class LostWatch:
         if self.lost:
             return False
         p = self.params
+        self.nothing_to_judge = verdict in UNJUDGED
         if verdict == Verdict.CHI2 and not jump:  # the filter too sure, not a slip: its frames are in doubt only
             self.doubted_t = t
             return False
@@ -131,7 +136,9 @@ class LostWatch:
         elif verdict == Verdict.ACCEPTED or verdict in UNJUDGED:
             self._end_streak()
             self.confirmed_t = max(self.confirmed_t, t)
-        elif self.streak and t - self.streak[-1] > p.lost_after_s:
+        elif not self.streak:  # degenerate, not converged: no evidence of a jump, so none to wait for either
+            self.confirmed_t = max(self.confirmed_t, t)
+        elif t - self.streak[-1] > p.lost_after_s:
             self._end_streak()  # degenerate ever since: the refusals stopped (the frames held meanwhile are dropped)
         return False
 
@@ -185,6 +192,8 @@ class LostWatch:
         if frame_t <= self.drop_until_t + 1e-9 or (self.lost and frame_t > self.confirmed_t):
             return DROP
         if frame_t <= self.confirmed_t + 1e-9:
+            return INTEGRATE
+        if self.nothing_to_judge and not self.streak:  # no trusted surface in view: no verdict could refuse it
             return INTEGRATE
         if now - frame_t > self.params.hold_max_s:  # no verdict came: kept unless a refusal put it in doubt
             return DROP if self.streak or frame_t <= self.doubted_t else INTEGRATE

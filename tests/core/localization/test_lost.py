@@ -246,3 +246,26 @@ def test_objects_that_fitted_a_moment_ago_and_now_pull_the_pose_have_moved():
         loc.apply_due(10.0)
     assert np.hypot(*loc.world_from_odom[:2]) < 0.01, loc.world_from_odom
     assert set(loc.take_change_evidence()) == {1, 3}
+
+
+def test_frames_wait_only_for_a_verdict_that_could_refuse_them():
+    """A frame waits for the next registration at or after it only when that registration could find a jump: with no
+    trusted surface in view (the latest verdict had nothing to judge by) it goes in at once; a degenerate or
+    unconverged verdict outside a streak confirms the frames up to it (before, they waited `hold_max_s`, 1 s); in a
+    streak they still wait."""
+    from core.localization.lost import LostWatch
+    from core.params import LocalizationParams
+
+    watch = LostWatch(LocalizationParams())
+    assert watch.fate(0.1, 0.15) == HOLD  # no verdict yet
+    watch.observe(Verdict.NO_REFERENCE, 0.2, localized=False)
+    assert watch.fate(0.3, 0.32) == INTEGRATE  # nothing trusted in view: no verdict could refuse it
+    watch.observe(Verdict.ACCEPTED, 0.4, localized=True)
+    assert watch.fate(0.5, 0.52) == HOLD  # trusted surface in view: the next registration may find a jump
+    watch.observe(Verdict.DEGENERATE, 0.6, localized=True)
+    assert watch.fate(0.55, 0.62) == INTEGRATE and watch.fate(0.65, 0.7) == HOLD
+    watch.observe(Verdict.INCONSISTENT, 0.8, localized=True)  # a streak starts
+    watch.observe(Verdict.DEGENERATE, 1.0, localized=True)
+    assert watch.fate(0.9, 1.02) == HOLD
+    watch.observe(Verdict.NO_REFERENCE, 1.2, localized=True)  # ends the streak: nothing to judge since
+    assert watch.fate(1.3, 1.31) == INTEGRATE
