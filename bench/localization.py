@@ -140,6 +140,18 @@ def run(seed: int, laps: int, localize: bool, share: float = 0.0, distance_m: fl
             "wall_s": wall_s, "latency_s": rt.closed_loop.camera_latency_s()}
 
 
+def lap_against_odometry(seed: int) -> dict[str, float]:
+    """One lap against the self-built map on `seed`, with the same run's odometry as the comparison: RMSE and max of
+    the x-y error (m) localized and by odometry alone, and the accepted registrations (a process pool's worker)."""
+    result = run(seed, 1, True)
+    rows = result["rows"]
+    localized = pose_errors(rows)[2]
+    odometry = np.array([np.linalg.norm(r[4][:2] - r[3][:2]) for r in rows])
+    return {"rmse_m": float(np.sqrt(np.mean(localized**2))), "max_m": float(localized.max()),
+            "odometry_rmse_m": float(np.sqrt(np.mean(odometry**2))), "odometry_max_m": float(odometry.max()),
+            "accepted": float(result["counts"].get(Verdict.ACCEPTED.value, 0))}
+
+
 def pose_errors(rows: list) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Times, laps, x-y error (m) and heading error (rad) of each control step."""
     t = np.array([r[0] for r in rows])
