@@ -207,8 +207,10 @@ class Localizer:
             ms += result.ms
         pts = np.asarray(source.points())[:, :3]
         correction = self._judge(frame, np.asarray(base_pose, float), result, pts, ms, ref_ms, disagreeing)
-        fit = self._object_residuals(ref, target, source, result.T_world_camera)
-        if correction.verdict == Verdict.CHI2 and not correction.jump:
+        small_refusal = correction.verdict == Verdict.CHI2 and not correction.jump
+        needs_fit = small_refusal or correction.verdict == Verdict.ACCEPTED  # only these read the objects' fit
+        fit = self._object_residuals(ref, target, source, result.T_world_camera) if needs_fit else {}
+        if small_refusal:
             moved = self._agreed_before(fit, frame.t)
             if moved:  # they fitted the pose a moment ago and now pull it: they moved, the base did not jump
                 surface = self._leave_out(moved, frame.t, surface)
@@ -284,14 +286,6 @@ class Localizer:
         if innovation is not None:
             with self.lock:
                 self.filter.P = self.filter.P + np.diag(np.asarray(innovation, float) ** 2)
-
-    def _off_objects(self, ref: Reference, target: registration.Target, source, T: np.ndarray
-                     ) -> tuple[tuple[int, ...], int]:
-        """Objects whose frame points, placed by the camera pose T, sit farther than `disagreement_m` (median)
-        from the reference, and how many objects were judged (when most of them are off, the pose, not the
-        objects, is in doubt: the caller's inconsistent verdict)."""
-        residual = self._object_residuals(ref, target, source, T)
-        return tuple(i for i, d in residual.items() if d > self.params.disagreement_m), len(residual)
 
     def _object_residuals(self, ref: Reference, target: registration.Target, source, T: np.ndarray
                           ) -> dict[int, float]:
