@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 import re
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 import numpy as np
@@ -68,13 +68,24 @@ def choose(page, label: str, option: str) -> None:
     page.get_by_role("option", name=option, exact=True).click()
 
 
-def wait_for(predicate, timeout_s: float, what: str) -> None:
+def wait_for(predicate, timeout_s: float, what: str, describe: Callable[[], str] | None = None) -> None:
+    """Poll `predicate` until it holds; on a timeout fail with `what` and, if given, `describe()`: what the
+    runtime was doing (a CI failure is read from its log alone)."""
     deadline = time.time() + timeout_s
     while time.time() < deadline:
         if predicate():
             return
         time.sleep(0.05)
-    pytest.fail(f"timed out waiting for {what}")
+    pytest.fail(f"timed out waiting for {what}" + (f"; {describe()}" if describe is not None else ""))
+
+
+def runtime_state(runtime: Runtime) -> str:
+    """One line on a live runtime for a failure message: run state, status, pose, speed, problems."""
+    state = runtime.state
+    problems = [f"{c.kind.value} ×{c.count}: {c.last_message}" for c in runtime.problems.counts()]
+    return (f"run state {runtime.run_state.value}, status {runtime.status_line()!r}, t {state.t:.2f} s, "
+            f"base {np.round(state.q[:3], 3).tolist()}, v {np.round(state.v[:3], 3).tolist()}, "
+            f"problems {problems}")
 
 
 def open_studio(page, studio: Studio) -> None:

@@ -10,7 +10,11 @@ import sys
 import threading
 import time
 
+import pytest
+
 from tests.app.conftest import ROOT, free_port
+
+pytestmark = pytest.mark.wallclock
 
 
 def test_ctrl_c_stops_the_studio_and_its_map_worker_without_a_traceback() -> None:

@@ -23,6 +23,8 @@ from core.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 from tests.app.conftest import free_port, start_studio, stop
 
+pytestmark = pytest.mark.wallclock
+
 WANTED = ("/tf", "/scene/boxes", "/robot/model")
 
 

@@ -26,6 +26,8 @@ from tests.app.bridge.conftest import wait_until
 from tests.app.test_localization_health import HOLD
 from tests.app.test_localization_loop import CORRIDOR, OUT_AND_BACK
 
+pytestmark = pytest.mark.wallclock
+
 
 @pytest.mark.slow
 def test_live_registrations_run_on_their_own_thread_and_the_io_loop_applies_their_corrections(monkeypatch):

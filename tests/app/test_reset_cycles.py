@@ -22,6 +22,8 @@ from core.robot.model import RobotModel
 from tests.app.bridge.conftest import wait_until
 from tests.app.faults import PATIENT, faulty_runtime
 
+pytestmark = pytest.mark.wallclock
+
 
 def _isolated(rt) -> MapProcess | None:
     world_map = rt.map

@@ -23,6 +23,8 @@ from app.ui.studio import Studio
 from core.scene import Scene
 from tests.app.conftest import free_port
 
+pytestmark = pytest.mark.wallclock
+
 CAMERA = {"type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0], "position": [0.0, 0.0, 3.0], "fov": 1.0,
           "near": 0.01, "far": 100.0, "image_height": 600, "image_width": 800, "look_at": [0.0, 0.0, 0.0],
           "up_direction": [0.0, 0.0, 1.0]}

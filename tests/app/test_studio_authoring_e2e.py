@@ -9,6 +9,8 @@ from core.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 from tests.app.studio_page import FailedActions, choose, live_studio, open_studio, set_vector, wait_for
 
+pytestmark = pytest.mark.wallclock
+
 SCENE = Scene((Box("mover", (1.2, 2.0, 0.3)), Box("side", (2.5, -1.6, 0.3))), robot_start=(0.0, 0.0, 0.0))
 THREE = TaskSequence(name="three", subtasks=[BaseSubtask(name=n, target=BasePose(x=x, y=0.0))
                                              for n, x in (("A", 1.0), ("B", 2.0), ("C", 3.0))])

@@ -17,6 +17,8 @@ from tasks import TaskSequence
 from tests.app.conftest import ARTIFACTS, free_port
 from tests.app.studio_page import pick_box, set_vector, wait_for
 
+pytestmark = pytest.mark.wallclock
+
 SCENE = Scene((Box("mover", (1.2, 2.0, 0.3)), Box("side", (2.5, -1.6, 0.3)), Box("far", (5.5, 1.8, 0.3))),
               robot_start=(0.0, 0.0, 0.0))
 

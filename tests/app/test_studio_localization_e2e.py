@@ -21,6 +21,8 @@ from tests.app.conftest import ARTIFACTS
 from tests.app.studio_page import live_studio, open_studio, wait_for
 from tests.app.test_localization_health import BOX_AHEAD, STARVED, UP_TO_THE_BOX
 
+pytestmark = pytest.mark.wallclock
+
 VIEW_COLUMNS = slice(320, 870)
 """The 3D view's part of the 1280-pixel page between the notices (left) and the panel (right)."""
 

@@ -8,6 +8,8 @@ from PIL import Image
 
 from tests.app.conftest import ARTIFACTS
 
+pytestmark = pytest.mark.wallclock
+
 
 def _colour_fractions(shot) -> tuple[float, float]:
     """Fractions of the screenshot that look like cardboard boxes and like the robot's dark base."""

@@ -12,6 +12,8 @@ from tasks import BasePose, BaseSubtask, TaskSequence
 from tests.app.conftest import ARTIFACTS, free_port
 from tests.app.studio_page import choose, row_inputs, wait_for
 
+pytestmark = pytest.mark.wallclock
+
 
 @pytest.mark.slow
 def test_scrub_play_and_speed_in_the_browser(tmp_path, page):

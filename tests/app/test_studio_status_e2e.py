@@ -21,6 +21,8 @@ from tests.app.conftest import ARTIFACTS, ROOT
 from tests.app.studio_page import live_studio, open_studio, set_vector, wait_for
 from tests.app.test_no_path import PEN_SEQUENCE, THROUGH_THE_GAP, WIDE_MARGIN, pen_scene, wall_with_a_gap
 
+pytestmark = pytest.mark.wallclock
+
 
 def page_text(page) -> str:
     return page.evaluate("() => document.body.innerText")

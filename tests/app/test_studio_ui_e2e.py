@@ -14,7 +14,18 @@ from app.ui import glyphs
 from core.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 from tests.app.conftest import ARTIFACTS, CHROMIUM, CHROMIUM_ARGS
-from tests.app.studio_page import choose, live_studio, open_studio, pick_box, row_inputs, set_vector, wait_for
+from tests.app.studio_page import (
+    choose,
+    live_studio,
+    open_studio,
+    pick_box,
+    row_inputs,
+    runtime_state,
+    set_vector,
+    wait_for,
+)
+
+pytestmark = pytest.mark.wallclock
 
 SCENE = Scene((Box("mover", (1.2, 2.0, 0.3)), Box("side", (2.5, -1.6, 0.3))), robot_start=(0.0, 0.0, 0.0))
 GOAL = TaskSequence(name="to the far side", subtasks=[BaseSubtask(name="cross", target=BasePose(x=3.0, y=0.5),
@@ -192,12 +203,12 @@ def test_progress_bar_and_time_left_while_running(session):
     runtime.set_sequence(GOAL)
     page.get_by_role("button", name="Start").click()
     wait_for(lambda: runtime.run_state == RunState.RUNNING and np.hypot(*runtime.state.v[:2]) > 0.1, 30,
-             "the robot to drive")
+             "the robot to drive", lambda: runtime_state(runtime))
     page.get_by_text(re.compile(r"about \d+(\.\d)? s left")).first.wait_for()
     page.get_by_text(re.compile(r"times out in \d+(\.\d)? s")).first.wait_for()
     wait_for(lambda: float(page.get_by_role("progressbar").first.get_attribute("aria-valuenow") or 0) > 10, 60,
              "the progress bar to fill")
-    wait_for(lambda: runtime.run_state == RunState.FINISHED, 90, "the run to finish")
+    wait_for(lambda: runtime.run_state == RunState.FINISHED, 90, "the run to finish", lambda: runtime_state(runtime))
     page.get_by_text(re.compile(r"finished after \d+(\.\d)? s")).first.wait_for()
     page.screenshot(path=str(ARTIFACTS / "studio_progress.png"))
 

@@ -30,6 +30,7 @@ def _may_raise_priority() -> bool:
     return result[0]
 
 
+@pytest.mark.wallclock
 def test_live_loops_run_at_raised_priority_and_the_map_below_them() -> None:
     if not _may_raise_priority():
         pytest.skip("no permission to raise priority here (needs root or CAP_SYS_NICE)")

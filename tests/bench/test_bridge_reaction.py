@@ -14,6 +14,8 @@ from bench.bridge_reaction_chain import BRIDGE_PARTS, BridgeReaction
 from core.params import HTMPCParams, MappingParams
 from tests.bench.reaction_checks import first_slowed, step_that_held_the_box
 
+pytestmark = pytest.mark.wallclock
+
 EVENTS = 3
 
 

@@ -12,6 +12,8 @@ from bench.reaction_chain import PARTS, Reaction
 from core.params import HTMPCParams, MappingParams
 from tests.bench.reaction_checks import first_slowed, step_that_held_the_box
 
+pytestmark = pytest.mark.wallclock
+
 EVENTS = 3
 
 

@@ -84,6 +84,7 @@ with atomic_output(sys.argv[1]) as f:
 """
 
 
+@pytest.mark.wallclock
 def test_sigkill_in_the_middle_of_a_save_keeps_the_previous_file(tmp_path: Path) -> None:
     path = tmp_path / "run_log.json"
     path.write_text('{"rows": [1, 2, 3]}')

@@ -4,6 +4,9 @@ its field and line, and check an anchored target where its (simulated) box is.""
 from __future__ import annotations
 
 import httpx
+import pytest
+
+pytestmark = pytest.mark.wallclock
 
 ANCHORED = """name: anchored
 objects:

@@ -17,6 +17,8 @@ from app.bridge.auth import TOKEN_ENV, masked, read_token, resolve_token
 from app.bridge.server import BridgeServer
 from tests.app.bridge.conftest import ROOT, auth
 
+pytestmark = pytest.mark.wallclock
+
 
 def _mutating_routes(bridge: BridgeServer) -> list[tuple[str, str]]:
     """Every operation of the OpenAPI schema that is not a GET."""

@@ -11,6 +11,8 @@ import pytest
 from app.bridge.depth_framing import MAGIC, FrameFormatError, decode_depth_frame, encode_depth_frame
 from core.types import DepthFrame
 
+pytestmark = pytest.mark.wallclock
+
 
 def _frame(depth: np.ndarray | None = None) -> DepthFrame:
     rng = np.random.default_rng(1)

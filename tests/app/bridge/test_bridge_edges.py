@@ -8,6 +8,8 @@ import pytest
 
 from app.bridge.server import BridgeServer
 
+pytestmark = pytest.mark.wallclock
+
 ERROR_KEYS = {"detail", "problems"}
 
 

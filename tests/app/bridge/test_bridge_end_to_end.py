@@ -18,6 +18,8 @@ import pytest
 
 from tests.app.bridge.conftest import ROOT, DriverProcess, auth, end_process, wait_until
 
+pytestmark = pytest.mark.wallclock
+
 SCENE = ROOT / "core" / "scenes" / "default.yaml"
 SEQUENCE = f"""name: drive and reach
 scene: {SCENE}

@@ -12,6 +12,8 @@ from app.runtime.snapshot import RunState
 from tests.app.bridge.conftest import wait_until
 from tests.app.faults import RaiseOnCall
 
+pytestmark = pytest.mark.wallclock
+
 
 def test_a_fault_shows_in_the_api_and_blocks_start_until_reset(api: httpx.Client, sim_runtime) -> None:
     sim_runtime.start_live()

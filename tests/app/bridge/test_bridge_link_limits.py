@@ -14,6 +14,8 @@ from app.bridge.server import BridgeServer
 from tests.app.bridge.conftest import ROOT, ZERO_STATE, auth, send_state, wait_until
 from tests.app.bridge.test_bridge_robot_link import _next
 
+pytestmark = pytest.mark.wallclock
+
 FLAT = " ".join((ROOT / "docs" / "bridge.md").read_text().split())
 MAX_MESSAGE_BYTES = 16 * 2**20
 

@@ -21,6 +21,8 @@ from core.params import LocalizationParams
 from core.types import PoseSource
 from tests.app.bridge.conftest import StateStreamer, send_state, wait_until
 
+pytestmark = pytest.mark.wallclock
+
 CORRIDOR_YAML = """name: corridor
 walls: false
 robot_start: [0.0, 0.0, 0.0]

@@ -15,6 +15,8 @@ from app.runtime import Runtime, RuntimeConfig
 from core.scene import Box, Scene
 from tasks.schema import TaskSequence
 
+pytestmark = pytest.mark.wallclock
+
 SCENE = Scene((Box("crate", (2.5, 0.0, 0.3)), Box("bin", (0.0, 3.0, 0.3), yaw=0.3)), robot_start=(0.0, 0.0, 0.0))
 ANCHORED = """name: anchored
 objects:

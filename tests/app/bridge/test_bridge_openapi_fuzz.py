@@ -22,6 +22,8 @@ from schemathesis.checks import (
 from app.bridge.server import BridgeServer
 from tests.app.bridge.conftest import auth
 
+pytestmark = pytest.mark.wallclock
+
 CHECKS = [not_a_server_error, status_code_conformance, content_type_conformance, response_schema_conformance,
           negative_data_rejection, ignored_auth]
 MIN_CASES = 500

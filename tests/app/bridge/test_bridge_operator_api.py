@@ -4,9 +4,12 @@ and line) works, the runtime's routes answer 503."""
 from __future__ import annotations
 
 import httpx
+import pytest
 
 from tests.app.bridge.conftest import BAD_SEQUENCE as BAD
 from tests.app.bridge.conftest import EXAMPLE_SEQUENCE as EXAMPLE
+
+pytestmark = pytest.mark.wallclock
 
 
 def test_validate_accepts_an_example_sequence(api: httpx.Client) -> None:

@@ -15,6 +15,8 @@ from app.bridge.server import BridgeServer
 from core.types import DepthFrame
 from tests.app.bridge.conftest import ZERO_STATE, StateStreamer, auth, send_state, wait_until
 
+pytestmark = pytest.mark.wallclock
+
 
 def _frame(t: float, depth: np.ndarray | None = None) -> DepthFrame:
     depth = np.full((12, 16), 1.5, dtype=np.float32) if depth is None else depth

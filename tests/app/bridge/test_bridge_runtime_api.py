@@ -17,6 +17,8 @@ from tests.app.bridge.conftest import BAD_SEQUENCE as BAD
 from tests.app.bridge.conftest import EXAMPLE_SEQUENCE as EXAMPLE
 from tests.app.bridge.conftest import StateStreamer, wait_until
 
+pytestmark = pytest.mark.wallclock
+
 
 def test_status_routes_report_the_runtime(api: httpx.Client, sim_runtime) -> None:
     state = api.get("/api/state").json()

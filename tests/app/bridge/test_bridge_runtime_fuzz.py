@@ -9,6 +9,8 @@ import pytest
 from app.bridge.server import BridgeServer
 from tests.app.bridge.test_bridge_openapi_fuzz import fuzz, fuzz_budget
 
+pytestmark = pytest.mark.wallclock
+
 
 @pytest.mark.slow
 def test_fuzzing_a_simulating_runtime_finds_no_server_error(bridge: BridgeServer, sim_runtime,

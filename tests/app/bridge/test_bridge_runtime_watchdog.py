@@ -14,6 +14,8 @@ from app.bridge.server import BridgeServer
 from app.runtime.snapshot import RunState
 from tests.app.bridge.conftest import wait_until
 
+pytestmark = pytest.mark.wallclock
+
 DEADLINE_S = 0.2
 
 

@@ -9,7 +9,7 @@ import pytest
 from app.bridge.server import BridgeServer
 from tests.app.bridge.conftest import FORWARD, Commander, wait_until
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.wallclock]
 
 
 def test_driver_streams_state_and_frames_of_both_cameras(bridge: BridgeServer, start_driver) -> None:

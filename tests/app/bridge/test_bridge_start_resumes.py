@@ -5,12 +5,15 @@ emergency stop): tests/app/test_start_resumes.py."""
 from __future__ import annotations
 
 import httpx
+import pytest
 from websockets.sync.client import ClientConnection
 
 from app.bridge.server import BridgeServer
 from app.runtime import Runtime, RuntimeConfig
 from app.runtime.snapshot import RunState
 from tests.app.bridge.conftest import StateStreamer, wait_until
+
+pytestmark = pytest.mark.wallclock
 
 
 def test_start_after_a_stale_state_pause_resumes_the_active_subtask(api: httpx.Client, bridge: BridgeServer,

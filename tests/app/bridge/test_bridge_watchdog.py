@@ -19,6 +19,8 @@ from websockets.sync.client import ClientConnection
 from app.bridge.server import BridgeServer
 from tests.app.bridge.conftest import send_state, wait_until
 
+pytestmark = pytest.mark.wallclock
+
 DEADLINE_S = 0.2
 """Zero velocity within this of a driver's death (the issue)."""
 SCHEDULING_SLACK_S = 0.05

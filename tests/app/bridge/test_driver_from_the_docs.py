@@ -21,6 +21,8 @@ from app.bridge.server import BridgeServer
 from tasks.sequence_file import parse_sequence
 from tests.app.bridge.conftest import ROOT, auth, end_process, wait_until
 
+pytestmark = pytest.mark.wallclock
+
 DRIVER = Path(__file__).with_name("doc_driver.py")
 ALLOWED_IMPORTS = {"__future__", "argparse", "json", "math", "os", "signal", "struct", "sys", "threading", "time",
                    "numpy", "websockets"}

@@ -179,6 +179,7 @@ def _wait_for_growth(path: Path, proc: subprocess.Popen, flushes: int, timeout_s
     return sizes[-1]
 
 
+@pytest.mark.wallclock
 @pytest.mark.slow
 def test_sigkill_while_recording_loses_only_the_unfinished_tail(tmp_path) -> None:
     """`python -m app run --headless --record` killed with SIGKILL mid-run: the file replays up to its tail."""

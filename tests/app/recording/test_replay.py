@@ -13,6 +13,8 @@ from core.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
 from tests.app.conftest import free_port
 
+pytestmark = pytest.mark.wallclock
+
 
 def test_replay_drives_the_studio(tmp_path):
     rt = Runtime(RuntimeConfig(map_kind="object"), scene=Scene((Box("a", (2.0, 1.0, 0.3)),)),

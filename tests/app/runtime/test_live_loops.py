@@ -14,6 +14,8 @@ from app.runtime.snapshot import RunState, Snapshot
 from tests.app.bridge.conftest import wait_until
 from tests.app.faults import PATIENT, RaiseOnCall, assert_brakes_within_limits, faulty_runtime
 
+pytestmark = pytest.mark.wallclock
+
 
 def _break_part(part: str, method: str, error: BaseException):
     def inject(rt, backend) -> None:

@@ -19,6 +19,8 @@ from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
 from tests.app.bridge.conftest import wait_until
 
+pytestmark = pytest.mark.wallclock
+
 
 @pytest.fixture(scope="module")
 def observations():

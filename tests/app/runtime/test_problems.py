@@ -95,6 +95,7 @@ def test_controller_problems_reach_the_snapshot_and_the_report(tmp_path):
     assert rt.snapshot().problems == ()
 
 
+@pytest.mark.wallclock
 @pytest.mark.slow
 def test_a_crashed_live_loop_is_a_fault():
     rt = Runtime(RuntimeConfig(map_kind="object"), scene=Scene(), sequence=GOAL)

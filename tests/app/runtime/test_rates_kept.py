@@ -13,6 +13,8 @@ from app.runtime.problems import ProblemKind
 from core.params import CameraParams, SimParams
 from tests.app.bridge.conftest import wait_until
 
+pytestmark = pytest.mark.wallclock
+
 FAST = CameraParams(rate_hz=100.0)
 """One frame per 10 ms physics step from each camera: two frames every 10 ms, more than the map integrates."""
 

@@ -119,6 +119,7 @@ def _time_stands(snapshots, n: int = 5) -> bool:
     return len(snapshots) >= n and len({s.state.t for s in snapshots[-n:]}) == 1
 
 
+@pytest.mark.wallclock
 def test_live_run_control_and_subscribers():
     seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=2.0, y=0.0))])
     rt = Runtime(RuntimeConfig(map_kind="ground_truth", publish_hz=20.0), scene=Scene(), sequence=seq)
