@@ -50,7 +50,7 @@ def test_scattered_pixels_get_the_neighbourhoods_of_the_strided_frame():
     depth = np.random.default_rng(0).uniform(0.0, 3.0, (12, 16))
     grid = neighbourhoods(depth, 2)
     v, u = np.mgrid[0:12:2, 0:16:2]
-    np.testing.assert_array_equal(neighbourhoods_at(depth, v.ravel(), u.ravel()), grid.reshape(-1, 9))
+    np.testing.assert_array_equal(neighbourhoods_at(depth, v.ravel(), u.ravel()), grid.reshape(9, -1))
 
 
 def test_flying_pixels_are_dropped_and_surfaces_kept(robot):
