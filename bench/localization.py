@@ -154,7 +154,12 @@ def lap_against_odometry(seed: int) -> dict[str, float]:
     odometry = np.array([np.linalg.norm(r[4][:2] - r[3][:2]) for r in rows])
     return {"rmse_m": float(np.sqrt(np.mean(localized**2))), "max_m": float(localized.max()),
             "odometry_rmse_m": float(np.sqrt(np.mean(odometry**2))), "odometry_max_m": float(odometry.max()),
-            "accepted": float(result["counts"].get(Verdict.ACCEPTED.value, 0))}
+            "accepted": float(accepted(result))}
+
+
+def accepted(result: dict) -> int:
+    """How many of a run's registrations were accepted (the localizer's verdict counts)."""
+    return result["counts"].get(Verdict.ACCEPTED.value, 0)
 
 
 def pose_errors(rows: list) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -219,7 +224,7 @@ def registration_figures(result: dict) -> dict[str, float]:
     counts = result["counts"]
     return {"registration_ms_p50": percentile(reg, 50), "registration_ms_p95": percentile(reg, 95),
             "reference_ms_p50": percentile(ref, 50),
-            "accepted": float(counts.get(Verdict.ACCEPTED.value, 0)),
+            "accepted": float(accepted(result)),
             "rejected": float(sum(v for k, v in counts.items() if k not in (Verdict.ACCEPTED.value, DEGENERATE))),
             "failures": float(sum(counts.get(v.value, 0) for v in FAILURES)),
             "no_reference": float(counts.get(Verdict.NO_REFERENCE.value, 0)),
@@ -268,10 +273,10 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     moves = [] if args.quick else list(MOVES[1:])
     jobs = ([(s, laps, True, 0.0, 0.0, oracle) for s in seeds] + [(s, laps, False, 0.0, 0.0, False) for s in seeds]
             + [(s, laps, True, share, dist, oracle) for share, dist in moves for s in seeds])
-    results = run_all(jobs, args.workers)
-    on, off = results[: len(seeds)], results[len(seeds): 2 * len(seeds)]
-    moved = {move: results[2 * len(seeds) + k * len(seeds): 2 * len(seeds) + (k + 1) * len(seeds)]
-             for k, move in enumerate(moves)}
+    result = dict(zip(jobs, run_all(jobs, args.workers), strict=True))
+    on = [result[(s, laps, True, 0.0, 0.0, oracle)] for s in seeds]
+    off = [result[(s, laps, False, 0.0, 0.0, False)] for s in seeds]
+    moved = {(share, dist): [result[(s, laps, True, share, dist, oracle)] for s in seeds] for share, dist in moves}
     figures: dict[str, float] = {"oracle_reference": float(oracle)}
     merged_on = {"rows": [r for x in on for r in x["rows"]], "completed": sum(x["completed"] for x in on)}
     merged_off = {"rows": [r for x in off for r in x["rows"]], "completed": sum(x["completed"] for x in off)}
@@ -288,12 +293,12 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     figures["wall_s_off"] = float(sum(x["wall_s"] for x in off))
     if not args.quick:
         figures["false_corrections_pct_0_0"] = float(np.nanmean([false_corrections_pct(x) for x in on]))
-        figures["corrections_0_0"] = float(sum(_accepted(x) for x in on))
+        figures["corrections_0_0"] = float(sum(accepted(x) for x in on))
         worst = figures["false_corrections_pct_0_0"]
         for (share, dist), runs in moved.items():
             key = f"false_corrections_pct_{int(share * 100)}_{int(round(dist * 100))}"
             figures[key] = float(np.nanmean([false_corrections_pct(x) for x in runs]))
-            figures[key.replace("false_corrections_pct", "corrections")] = float(sum(_accepted(x) for x in runs))
+            figures[key.replace("false_corrections_pct", "corrections")] = float(sum(accepted(x) for x in runs))
             figures[key.replace("false_corrections_pct", "ate_rmse_m")] = ate_figures(
                 {"rows": [r for x in runs for r in x["rows"]], "completed": 0}, laps)["ate_rmse_m"]
             figures[key.replace("false_corrections_pct", "completed")] = float(sum(x["completed"] for x in runs))
@@ -305,10 +310,6 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
                "false_corrections_pct": "<= 1", "ate_rmse_lap3_m": "<= 1.2 x lap1"}
     write_result(NAME, figures, units, targets, quick=args.quick)
     return figures
-
-
-def _accepted(result: dict) -> int:
-    return sum(c.verdict == Verdict.ACCEPTED for c in result["corrections"])
 
 
 if __name__ == "__main__":

@@ -8,7 +8,8 @@ import argparse
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-OUT = Path(__file__).resolve().parents[1] / "tests" / "slowest_tests.txt"
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "tests" / "slowest_tests.txt"
 HEADER = """# Seconds and node id of the slowest lockstep tests (from {source}).
 # tests/conftest.py sends these first, slowest first, when the tests run in parallel: an order hint only (a stale or
 # missing line costs time, never a result). Refresh from a run's junit XML:
@@ -18,13 +19,11 @@ HEADER = """# Seconds and node id of the slowest lockstep tests (from {source}).
 
 def node_id(case: ET.Element) -> str:
     """pytest's node id of a junit test case (`classname` is the dotted module path, then any class)."""
-    parts = case.get("classname", "").split(".")
-    path = "/".join(parts) + ".py"
-    while parts and not Path(path).exists():  # a test class: its name is the last dotted part
-        parts = parts[:-1]
-        path = "/".join(parts) + ".py"
-    rest = case.get("classname", "").split(".")[len(parts):]
-    return "::".join([path, *rest, case.get("name", "")])
+    dotted = case.get("classname", "").split(".")
+    parts = list(dotted)
+    while parts and not (ROOT / ("/".join(parts) + ".py")).exists():  # a test class: the last dotted parts
+        parts.pop()
+    return "::".join(["/".join(parts) + ".py", *dotted[len(parts):], case.get("name", "")])
 
 
 def main() -> None:

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Command 2 of the README: set up with test needs (Debian chromium, the dev extra) and run every test.
 # Two phases: the lockstep tests in parallel (pytest-xdist, TEST_WORKERS processes, default 2; each test goes to the
-# next free process, the slowest first as tests/slowest_tests.txt measured them: tests/conftest.py), then the tests marked `wallclock` (live loops, a browser, a served bridge) one at a time, so
-# that nothing else competes with their clocks. Fails if a test fails or if no test ran. Extra arguments go to
+# next free process, the slowest first as tests/slowest_tests.txt measured them: tests/conftest.py), then the
+# tests marked `wallclock` (live loops, a browser, a served bridge) one at a time, so that nothing else competes
+# with their clocks. Fails if a test fails or if no test ran. Extra arguments go to
 # pytest in both phases.
 set -euo pipefail
 cd "$(dirname "$0")/.."
