@@ -200,10 +200,9 @@ class Localizer:
             return self._record(Correction(frame.t, Verdict.INCONSISTENT, registration_ms=ms, reference_ms=ref_ms,
                                            off=disagreeing))
         if disagreeing:
-            surface = self._leave_out(disagreeing, frame.t, surface)
-            ref, target, more_ms = self.prepared_reference(surface, np.asarray(base_pose[:2], float))
+            surface, ref, target, result, more_ms = self._register_without(disagreeing, frame, base_pose, surface,
+                                                                           source, radius)
             ref_ms += more_ms
-            result = registration.register(target, source, frame.T_world_camera, radius, p.max_iterations)
             ms += result.ms
         pts = np.asarray(source.points())[:, :3]
         correction = self._judge(frame, np.asarray(base_pose, float), result, pts, ms, ref_ms, disagreeing)
@@ -213,9 +212,8 @@ class Localizer:
         if small_refusal:
             moved = self._agreed_before(fit, frame.t)
             if moved:  # they fitted the pose a moment ago and now pull it: they moved, the base did not jump
-                surface = self._leave_out(moved, frame.t, surface)
-                ref, target, more_ms = self.prepared_reference(surface, np.asarray(base_pose[:2], float))
-                result = registration.register(target, source, frame.T_world_camera, radius, p.max_iterations)
+                surface, ref, target, result, more_ms = self._register_without(moved, frame, base_pose, surface,
+                                                                               source, radius)
                 correction = self._judge(frame, np.asarray(base_pose, float), result, pts, ms + result.ms,
                                          ref_ms + more_ms, disagreeing + moved)
                 fit = self._object_residuals(ref, target, source, result.T_world_camera)
@@ -224,6 +222,17 @@ class Localizer:
         if correction.verdict == Verdict.ACCEPTED:
             self._agreed.update({i: frame.t for i, d in fit.items() if d <= p.disagreement_m})
         return self._record(correction)
+
+    def _register_without(self, ids: tuple[int, ...], frame: DepthFrame, base_pose: np.ndarray,
+                          surface: ReferenceSurface | None, source, radius: float
+                          ) -> tuple[ReferenceSurface | None, Reference, registration.Target, registration.Result,
+                                     float]:
+        """Leave `ids` out (as change evidence) and register the frame again against what remains: the surface
+        without them, its reference and target, the new result and the ms spent rebuilding the reference."""
+        surface = self._leave_out(ids, frame.t, surface)
+        ref, target, ref_ms = self.prepared_reference(surface, np.asarray(base_pose[:2], float))
+        result = registration.register(target, source, frame.T_world_camera, radius, self.params.max_iterations)
+        return surface, ref, target, result, ref_ms
 
     def _agreed_before(self, fit: dict[int, float], t: float) -> tuple[int, ...]:
         """The objects that fit a χ²-refused pose and fitted an accepted one within `agreed_recently_s`: the pose
