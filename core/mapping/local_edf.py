@@ -261,21 +261,32 @@ def column_field(grid: EDFGrid, points: np.ndarray, cutoff: float, weights: np.n
     surface = _surface_points(grid, cells, nodes)
     row_of = np.zeros(occupied.size, dtype=np.intp)
     row_of[nodes] = np.arange(len(nodes))
-    values = _outside(grid, row_of[_nearest_nodes(grid, occupied, NEIGHBOUR_REACH)], surface, NEIGHBOUR_REACH)
-    at, inside = _inside(grid, occupied, nodes, surface)
+    ijk = np.unravel_index(nodes, grid.shape)
+    rows = row_of[_nearest_nodes(grid, occupied, ijk, NEIGHBOUR_REACH)]
+    values = _outside(grid, rows, surface, NEIGHBOUR_REACH)
+    at, inside = _inside(grid, occupied, ijk, surface)
     values.reshape(-1)[at] = inside
     return np.clip(values, -cutoff, cutoff, out=values)
 
 
-def _nearest_nodes(grid: EDFGrid, occupied: np.ndarray, reach: int) -> np.ndarray:
+def _nearest_nodes(grid: EDFGrid, occupied: np.ndarray, nodes: tuple[np.ndarray, ...], reach: int) -> np.ndarray:
     """Flat index of the nearest occupied node (the feature transform of the free mask) of each node of the
     window's x-y and of its z range grown by `reach` each way; past the grid's bottom or top the last layer
-    repeats."""
-    nearest = cast(np.ndarray, ndimage.distance_transform_edt(~occupied, return_distances=False,
-                                                              return_indices=True))
+    repeats. `nodes` are the occupied nodes' indices (i, j, k).
+
+    The transform runs on the bounding block of those nodes and of the nodes asked for, not on the whole
+    padded grid (a quarter to a third smaller on the aisle's grids). The same features: every occupied node is
+    inside the block, and a line of the grid cut by the block loses only nodes with no occupied node in their
+    row, which no node's nearest can be."""
     wx, wy, wz = grid.window
-    zs = np.clip(np.arange(wz.start - reach, wz.stop + reach), 0, grid.shape[2] - 1)
-    i, j, k = (nearest[a, wx, wy][:, :, zs] for a in range(3))
+    lo = np.minimum([wx.start, wy.start, max(wz.start - reach, 0)], [int(n.min()) for n in nodes])
+    hi = np.maximum([wx.stop, wy.stop, min(wz.stop + reach, grid.shape[2])], [int(n.max()) + 1 for n in nodes])
+    block = tuple(slice(int(a), int(b)) for a, b in zip(lo, hi, strict=True))
+    nearest = cast(np.ndarray, ndimage.distance_transform_edt(~occupied[block], return_distances=False,
+                                                              return_indices=True))
+    zs = np.clip(np.arange(wz.start - reach, wz.stop + reach), 0, grid.shape[2] - 1) - lo[2]
+    i, j, k = (nearest[a, wx.start - lo[0]:wx.stop - lo[0], wy.start - lo[1]:wy.stop - lo[1]][:, :, zs] + lo[a]
+               for a in range(3))
     return (i * grid.shape[1] + j) * grid.shape[2] + k
 
 
@@ -301,13 +312,13 @@ def _outside(grid: EDFGrid, rows: np.ndarray, surface: np.ndarray, reach: int) -
     return np.sqrt(best, out=best)
 
 
-def _inside(grid: EDFGrid, occupied: np.ndarray, nodes: np.ndarray,
+def _inside(grid: EDFGrid, occupied: np.ndarray, nodes: tuple[np.ndarray, ...],
             surface: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Flat window indices of the occupied nodes (flat `nodes`, surface points 3×K) inside the window, and their
+    """Flat window indices of the occupied nodes (`nodes` as (i, j, k), surface points 3×K) inside the window, and their
     signed values: next to free space the signed offset from the node's point along the direction to that free
     space (0 on a layer one node thin, whose free side is unknown), deeper the transform's depth."""
     wx, wy, wz = grid.window
-    i, j, k = np.unravel_index(nodes, grid.shape)
+    i, j, k = nodes
     keep = (i >= wx.start) & (i < wx.stop) & (j >= wy.start) & (j < wy.stop) & (k >= wz.start) & (k < wz.stop)
     i, j, k, own = i[keep], j[keep], k[keep], surface[:, keep]
     normal, sheet = _free_side(occupied, (i, j, k))

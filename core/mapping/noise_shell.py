@@ -38,7 +38,15 @@ def outweighed(origin: np.ndarray, voxel: float, shape: tuple[int, int, int], po
 def outweighed_cells(flat: np.ndarray, weights: np.ndarray, shape: tuple[int, int, int], ratio: float) -> np.ndarray:
     """Mask (N,) of the points, given by the flat index of their cell in `shape` and their weight, whose cell
     weighs less than 1/`ratio` of the heaviest of its 26 neighbours: `outweighed` once the cells are known (the
-    surface columns find the cells once for the shell, the columns and the surface points)."""
+    surface columns find the cells once for the shell, the columns and the surface points).
+
+    The neighbourhood maximum is read only at cells that hold points, so the filter runs on their bounding block
+    grown by one cell: every cell beyond it is empty, as the filter's constant-zero border is."""
+    if len(flat) == 0:
+        return np.zeros(0, dtype=bool)
     cell = np.bincount(flat, weights, int(np.prod(shape))).reshape(shape)
-    heaviest = ndimage.maximum_filter(cell, size=3, mode="constant", cval=0.0)
-    return cell.reshape(-1)[flat] * ratio < heaviest.reshape(-1)[flat]
+    ijk = np.unravel_index(flat, shape)
+    block = tuple(slice(max(int(n.min()) - 1, 0), int(n.max()) + 2) for n in ijk)
+    heaviest = ndimage.maximum_filter(cell[block], size=3, mode="constant", cval=0.0)
+    at = tuple(n - b.start for n, b in zip(ijk, block, strict=True))
+    return cell[ijk] * ratio < heaviest[at]
