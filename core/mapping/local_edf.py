@@ -28,7 +28,7 @@ from typing import cast
 import numpy as np
 from scipy import ndimage
 
-from core.mapping.noise_shell import outweighed
+from core.mapping.noise_shell import outweighed_cells
 from core.types import LocalEDF
 
 
@@ -112,31 +112,64 @@ def mark_columns(grid: EDFGrid, occupied: np.ndarray, points: np.ndarray) -> Non
     the solid under a surface seen from above or the side, for objects that rest on the floor."""
     if len(points) == 0:
         return
-    idx = np.rint((points - grid.origin) / grid.voxel).astype(int)
-    ok = np.all((idx[:, :2] >= 0) & (idx[:, :2] < grid.shape[:2]), axis=1) & (idx[:, 2] >= 0)
-    idx = idx[ok]
+    _mark_column_nodes(grid, occupied, ColumnPoints.over(grid, points).nodes)
+
+
+def _mark_column_nodes(grid: EDFGrid, occupied: np.ndarray, nodes: np.ndarray) -> None:
+    """`mark_columns` for the points' nodes (N×3, inside the grid): each column up to its highest node."""
     top = np.full(grid.shape[:2], -1)
-    np.maximum.at(top, (idx[:, 0], idx[:, 1]), np.minimum(idx[:, 2], grid.shape[2] - 1))
+    np.maximum.at(top, (nodes[:, 0], nodes[:, 1]), nodes[:, 2])
     floor = grid.window[2].start  # the node at z = 0
     k = np.arange(grid.shape[2])
     occupied |= (k[None, None, :] >= floor) & (k[None, None, :] <= top[:, :, None])
 
 
-def depth_inside(occupied: np.ndarray) -> np.ndarray:
-    """EDT of the occupied mask (distance in voxels from each occupied node to the nearest free one).
+@dataclass(frozen=True)
+class ColumnPoints:
+    """Surface points over the grid's columns: the points (N×3), their weights (ones if none were given), their
+    nearest nodes (N×3; heights above the grid count in its top layer) and those nodes' flat indices.
 
-    Computed per connected occupied region on its bounding block grown by one node, which is exact
-    (the nearest free node of a region lies within that block) and far cheaper than one transform of
-    the whole, mostly free grid.
-    """
+    Points beside the grid or below its lowest layer are left out. The columns, the noise shell and the surface
+    points all read these nodes, so they are found once a call; the bounds are tested axis by axis (an `np.all`
+    over an (N, 2) index array cost ten times as much)."""
+
+    points: np.ndarray
+    weights: np.ndarray
+    nodes: np.ndarray
+    flat: np.ndarray
+
+    @classmethod
+    def over(cls, grid: EDFGrid, points: np.ndarray, weights: np.ndarray | None = None) -> ColumnPoints:
+        idx = np.rint((points - grid.origin) / grid.voxel).astype(int)
+        i, j, k = idx[:, 0], idx[:, 1], idx[:, 2]
+        ok = (i >= 0) & (i < grid.shape[0]) & (j >= 0) & (j < grid.shape[1]) & (k >= 0)
+        w = np.ones(len(points)) if weights is None else np.asarray(weights, float)
+        idx = idx[ok]
+        np.minimum(idx[:, 2], grid.shape[2] - 1, out=idx[:, 2])
+        flat = (idx[:, 0] * grid.shape[1] + idx[:, 1]) * grid.shape[2] + idx[:, 2]
+        return cls(points[ok], w[ok], idx, flat)
+
+    def subset(self, keep: np.ndarray) -> ColumnPoints:
+        """The points where `keep` (N,) is set, in their order."""
+        return ColumnPoints(self.points[keep], self.weights[keep], self.nodes[keep], self.flat[keep])
+
+
+def depth_inside(occupied: np.ndarray) -> np.ndarray:
+    """EDT of the occupied mask (distance in voxels from each occupied node to the nearest free one), in any
+    number of dimensions.
+
+    Computed on the bounding block of the occupied nodes grown by one node, which is exact (a free node
+    outside that block projects onto its border to a free node no farther from any occupied node) and far
+    cheaper than one transform of the whole, mostly free grid. One transform of that block also beat one per
+    connected region (which needed a labelling first): 1.1 against 1.6 ms on the aisle's column grids."""
     out = np.zeros(occupied.shape)
-    labels, _ = cast(tuple[np.ndarray, int], ndimage.label(occupied))
-    for region, block in enumerate(ndimage.find_objects(labels), start=1):
-        grown = tuple(slice(max(b.start - 1, 0), min(b.stop + 1, n))
-                      for b, n in zip(block, occupied.shape, strict=True))
-        mask = labels[grown] == region
-        d = cast(np.ndarray, ndimage.distance_transform_edt(mask))
-        out[grown] = np.where(mask, d, out[grown])
+    axes = range(occupied.ndim)
+    filled = [np.flatnonzero(occupied.any(axis=tuple(b for b in axes if b != a))) for a in axes]
+    if len(filled[0]) == 0:
+        return out
+    block = tuple(slice(max(int(f[0]) - 1, 0), min(int(f[-1]) + 2, n))
+                  for f, n in zip(filled, occupied.shape, strict=True))
+    out[block] = cast(np.ndarray, ndimage.distance_transform_edt(occupied[block]))
     return out
 
 
@@ -217,74 +250,101 @@ def column_field(grid: EDFGrid, points: np.ndarray, cutoff: float, weights: np.n
     With `weights` and a `shell_ratio`, points whose EDF cell is outweighed that many times by a neighbour
     cell (the noise shell of a face seen from afar, `noise_shell.py`) are left out first. Truncated at ±cutoff.
     """
+    cells = ColumnPoints.over(grid, points, weights)
     if weights is not None and shell_ratio > 0.0:
-        weights = np.asarray(weights, float)
-        keep = ~outweighed(grid.origin, grid.voxel, grid.shape, points, weights, shell_ratio)
-        points, weights = points[keep], weights[keep]
+        cells = cells.subset(~outweighed_cells(cells.flat, cells.weights, grid.shape, shell_ratio))
     occupied = grid.empty()
-    mark_columns(grid, occupied, points)
+    _mark_column_nodes(grid, occupied, cells.nodes)
     if not occupied.any():
         return np.full(tuple(s.stop - s.start for s in grid.window), cutoff)
-    sx, sy, sz = _surface_points(grid, points, weights)
-    nearest = cast(np.ndarray, ndimage.distance_transform_edt(~occupied, return_distances=False,
+    nodes = np.flatnonzero(occupied)
+    surface = _surface_points(grid, cells, nodes)
+    row_of = np.zeros(occupied.size, dtype=np.intp)
+    row_of[nodes] = np.arange(len(nodes))
+    ijk = np.unravel_index(nodes, grid.shape)
+    rows = row_of[_nearest_nodes(grid, occupied, ijk, NEIGHBOUR_REACH)]
+    values = _outside(grid, rows, surface, NEIGHBOUR_REACH)
+    at, inside = _inside(grid, occupied, ijk, surface)
+    values.reshape(-1)[at] = inside
+    return np.clip(values, -cutoff, cutoff, out=values)
+
+
+def _nearest_nodes(grid: EDFGrid, occupied: np.ndarray, nodes: tuple[np.ndarray, ...], reach: int) -> np.ndarray:
+    """Flat index of the nearest occupied node (the feature transform of the free mask) of each node of the
+    window's x-y and of its z range grown by `reach` each way; past the grid's bottom or top the last layer
+    repeats. `nodes` are the occupied nodes' indices (i, j, k).
+
+    The transform runs on the bounding block of those nodes and of the nodes asked for, not on the whole
+    padded grid (a quarter to a third smaller on the aisle's grids). The same features: every occupied node is
+    inside the block, and a line of the grid cut by the block loses only nodes with no occupied node in their
+    row, which no node's nearest can be."""
+    wx, wy, wz = grid.window
+    lo = np.minimum([wx.start, wy.start, max(wz.start - reach, 0)], [int(n.min()) for n in nodes])
+    hi = np.maximum([wx.stop, wy.stop, min(wz.stop + reach, grid.shape[2])], [int(n.max()) + 1 for n in nodes])
+    block = tuple(slice(int(a), int(b)) for a, b in zip(lo, hi, strict=True))
+    nearest = cast(np.ndarray, ndimage.distance_transform_edt(~occupied[block], return_distances=False,
                                                               return_indices=True))
-    i, j, k = nearest[(slice(None), *grid.window)]
-    nodes = window_axes(grid)
-    x, y, z = nodes[0][:, None, None], nodes[1][None, :, None], nodes[2][None, None, :]
-    outside = np.sqrt((x - sx[i, j, k]) ** 2 + (y - sy[i, j, k]) ** 2 + (z - sz[i, j, k]) ** 2)
-    _nearer_through_neighbours(grid, nearest, (sx, sy, sz), (x, y, z), outside)
-    inside = -(depth_inside(occupied)[grid.window] - 0.5) * grid.voxel
-    w = grid.window
-    grown = tuple(slice(max(a.start - 1, 0), a.stop + 1) for a in w)
-    inner = tuple(slice(a.start - g.start, a.stop - g.start) for a, g in zip(w, grown, strict=True))
-    normal, sheet = _free_side(occupied[grown])
-    normal, sheet = normal[(slice(None), *inner)], sheet[inner]
-    dx, dy, dz = x - sx[w], y - sy[w], z - sz[w]
-    offset = normal[0] * dx + normal[1] * dy + normal[2] * dz
-    offset = np.where(sheet, 0.0, offset)  # a layer one node thin: which side is free is unknown, read 0
-    rim = sheet | np.any(normal != 0.0, axis=0)
-    inside = np.where(rim, offset, inside)
-    values = np.where(occupied[w], inside, outside)
-    return np.clip(values, -cutoff, cutoff)
+    zs = np.clip(np.arange(wz.start - reach, wz.stop + reach), 0, grid.shape[2] - 1) - lo[2]
+    i, j, k = (nearest[a, wx.start - lo[0]:wx.stop - lo[0], wy.start - lo[1]:wy.stop - lo[1]][:, :, zs] + lo[a]
+               for a in range(3))
+    return (i * grid.shape[1] + j) * grid.shape[2] + k
 
 
-def _nearer_through_neighbours(grid: EDFGrid, nearest: np.ndarray, surface: tuple[np.ndarray, ...],
-                               nodes: tuple[np.ndarray, ...], outside: np.ndarray) -> None:
-    """Lower each window node's `outside` (in place) to its distance to the points that the nearest occupied
-    nodes of the nodes up to `NEIGHBOUR_REACH` above and below it stand for, where those differ from its own."""
-    r = NEIGHBOUR_REACH
-    flat = np.ravel_multi_index(tuple(nearest), grid.shape)
-    flat = np.pad(flat, ((0, 0), (0, 0), (r, r)), mode="edge")  # shifts past the top or bottom repeat the last node
-    window = (grid.window[0], grid.window[1], slice(grid.window[2].start + r, grid.window[2].stop + r))
-    own = flat[window]
-    points = [c.reshape(-1) for c in surface]
-    full = np.broadcast_arrays(*nodes, outside)[:3]
-    for step in (*range(-r, 0), *range(1, r + 1)):
-        shifted = (window[0], window[1], slice(window[2].start + step, window[2].stop + step))
-        other = flat[shifted]
-        changed = other != own
-        if not changed.any():
-            continue
-        idx = other[changed]
-        d = np.sqrt(sum((full[c][changed] - points[c][idx]) ** 2 for c in range(3)))
-        outside[changed] = np.minimum(outside[changed], d)
+def _outside(grid: EDFGrid, rows: np.ndarray, surface: np.ndarray, reach: int) -> np.ndarray:
+    """Distance (m) from each window node to the nearest of the surface points (3×K) that the nearest occupied
+    nodes (`rows` into `surface`, from `_nearest_nodes`) of the nodes up to `reach` above and below it stand for.
+
+    The nearest node in node distance need not stand for the nearest point: columns make the occupied nodes
+    tall, and a point lies up to half a voxel from its node in each axis (see `NEIGHBOUR_REACH`). Squared
+    distances are compared and one square root taken at the end (the root is monotone and correctly rounded,
+    so this equals the minimum of the roots)."""
+    x, y, z = window_axes(grid)
+    x, y, z = x[:, None, None], y[None, :, None], z[None, None, :]
+    px, py, pz = (surface[a][rows] for a in range(3))
+    shape = (len(x), y.shape[1], z.shape[2])
+    best, total, term = np.full(shape, np.inf), np.empty(shape), np.empty(shape)  # reused: no fresh temporaries
+    for step in range(2 * reach + 1):
+        part = (slice(None), slice(None), slice(step, step + shape[2]))
+        np.square(np.subtract(x, px[part], out=total), out=total)
+        total += np.square(np.subtract(y, py[part], out=term), out=term)
+        total += np.square(np.subtract(z, pz[part], out=term), out=term)
+        np.minimum(best, total, out=best)
+    return np.sqrt(best, out=best)
 
 
-def _free_side(occupied: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(3, …) unit direction from each occupied node towards its free face-neighbours (zero where none), and
-    the mask of sheet nodes, whose free neighbours lie on opposite sides (there: the axis they lie along)."""
-    free = ~occupied
-    out = np.zeros((3, *occupied.shape))
-    both = np.zeros((3, *occupied.shape), dtype=bool)
-    for a in range(3):
-        lead = [slice(None)] * 3
-        lag = [slice(None)] * 3
-        lead[a], lag[a] = slice(1, None), slice(None, -1)
-        plus, minus = np.zeros(occupied.shape, dtype=bool), np.zeros(occupied.shape, dtype=bool)
-        plus[tuple(lag)] = free[tuple(lead)]  # free neighbour at +1 along a
-        minus[tuple(lead)] = free[tuple(lag)]  # free neighbour at −1 along a
-        out[a] = (plus.astype(float) - minus) * occupied
-        both[a] = plus & minus & occupied
+def _inside(grid: EDFGrid, occupied: np.ndarray, nodes: tuple[np.ndarray, ...],
+            surface: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Flat window indices of the occupied nodes (`nodes` as (i, j, k), surface points 3×K) inside the window, and their
+    signed values: next to free space the signed offset from the node's point along the direction to that free
+    space (0 on a layer one node thin, whose free side is unknown), deeper the transform's depth."""
+    wx, wy, wz = grid.window
+    i, j, k = nodes
+    keep = (i >= wx.start) & (i < wx.stop) & (j >= wy.start) & (j < wy.stop) & (k >= wz.start) & (k < wz.stop)
+    i, j, k, own = i[keep], j[keep], k[keep], surface[:, keep]
+    normal, sheet = _free_side(occupied, (i, j, k))
+    dx, dy, dz = (grid.origin[a] + grid.voxel * n - own[a] for a, n in enumerate((i, j, k)))
+    values = np.where(sheet, 0.0, normal[0] * dx + normal[1] * dy + normal[2] * dz)
+    deep = ~(sheet | np.any(normal != 0.0, axis=0))
+    if deep.any():
+        depth = depth_inside(occupied)[i[deep], j[deep], k[deep]]
+        values[deep] = -(depth - 0.5) * grid.voxel
+    at = ((i - wx.start) * (wy.stop - wy.start) + (j - wy.start)) * (wz.stop - wz.start) + (k - wz.start)
+    return at, values
+
+
+def _free_side(occupied: np.ndarray, at: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """(3, n) unit direction from each occupied node at indices `at` towards its free face-neighbours (zero
+    where none), and the mask of sheet nodes, whose free neighbours lie on opposite sides (there: the axis they
+    lie along). Beyond the grid's faces nothing counts as free."""
+    shape = tuple(n + 2 for n in occupied.shape)
+    bordered = np.pad(occupied, 1, constant_values=True).reshape(-1)
+    here = np.ravel_multi_index(tuple(a + 1 for a in at), shape)
+    out = np.zeros((3, len(here)))
+    both = np.zeros((3, len(here)), dtype=bool)
+    for a, stride in enumerate((shape[1] * shape[2], shape[2], 1)):
+        plus, minus = ~bordered[here + stride], ~bordered[here - stride]
+        out[a] = plus.astype(float) - minus
+        both[a] = plus & minus
     norm = np.sqrt(np.sum(out**2, axis=0))
     unit = np.divide(out, norm, out=np.zeros_like(out), where=norm > 0)
     sheet = (norm == 0) & np.any(both, axis=0)
@@ -292,33 +352,24 @@ def _free_side(occupied: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return unit, sheet
 
 
-def _surface_points(grid: EDFGrid, points: np.ndarray,
-                    weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The surface point each node of the padded grid stands for, as x, y and z arrays of the grid's shape:
-    the centroid of the points in its cell, else its own height at the x-y centroid of its column's points
-    (else the node itself)."""
+def _surface_points(grid: EDFGrid, cells: ColumnPoints, at: np.ndarray) -> np.ndarray:
+    """The surface point (3×K) each node of flat index `at` stands for: the weighted centroid of the points in
+    its cell, else its own height at the x-y centroid of its column's points (else the node itself).
+
+    Sums per cell and per column over the whole grid (one `bincount` each), read only at `at`."""
     shape = grid.shape
-    idx = np.rint((points - grid.origin) / grid.voxel).astype(int)
-    ok = np.all((idx[:, :2] >= 0) & (idx[:, :2] < shape[:2]), axis=1) & (idx[:, 2] >= 0)
-    idx, points = idx[ok], points[ok]
-    w = np.ones(len(points)) if weights is None else np.asarray(weights, float)[ok]
-    idx[:, 2] = np.minimum(idx[:, 2], shape[2] - 1)
-    col = idx[:, 0] * shape[1] + idx[:, 1]
     n2, n3 = shape[0] * shape[1], int(np.prod(shape))
-    cell = col * shape[2] + idx[:, 2]
-    n_col = np.maximum(np.bincount(col, minlength=n2), 1).reshape(shape[0], shape[1], 1)
-    n_cell = np.bincount(cell, minlength=n3).reshape(shape)
-    w_cell = np.bincount(cell, w, n3).reshape(shape)
-    has = n_cell > 0
-    axes = [grid.origin[a] + grid.voxel * np.arange(shape[a]) for a in range(3)]
-    out = []
+    col, at_col = cells.flat // shape[2], at // shape[2]
+    has = np.bincount(cells.flat, minlength=n3)[at] > 0
+    w_cell = np.where(has, np.bincount(cells.flat, cells.weights, n3)[at], 1.0)
+    in_col = np.bincount(col, minlength=n2)[at_col]
+    node = np.unravel_index(at, shape)
+    out = np.empty((3, len(at)))
     for a in range(3):
-        per_cell = np.bincount(cell, points[:, a] * w, n3).reshape(shape) / np.where(has, w_cell, 1.0)
+        per_cell = np.bincount(cells.flat, cells.points[:, a] * cells.weights, n3)[at] / w_cell
+        own = grid.origin[a] + grid.voxel * node[a]
         if a < 2:
-            column = np.bincount(col, points[:, a], n2).reshape(shape[0], shape[1], 1) / n_col
-            empty_col = np.bincount(col, minlength=n2).reshape(shape[0], shape[1], 1) == 0
-            fill = np.where(empty_col, axes[a][:, None, None] if a == 0 else axes[a][None, :, None], column)
-        else:
-            fill = axes[2][None, None, :]
-        out.append(np.where(has, per_cell, fill))
-    return out[0], out[1], out[2]
+            column = np.bincount(col, cells.points[:, a], n2)[at_col] / np.maximum(in_col, 1)
+            own = np.where(in_col == 0, own, column)
+        out[a] = np.where(has, per_cell, own)
+    return out

@@ -31,7 +31,22 @@ def outweighed(origin: np.ndarray, voxel: float, shape: tuple[int, int, int], po
     idx = idx[ok]
     idx[:, 2] = np.minimum(idx[:, 2], shape[2] - 1)
     flat = np.ravel_multi_index((idx[:, 0], idx[:, 1], idx[:, 2]), shape)
-    cell = np.bincount(flat, np.asarray(weights, float)[ok], int(np.prod(shape))).reshape(shape)
-    heaviest = ndimage.maximum_filter(cell, size=3, mode="constant", cval=0.0)
-    out[ok] = cell.reshape(-1)[flat] * ratio < heaviest.reshape(-1)[flat]
+    out[ok] = outweighed_cells(flat, np.asarray(weights, float)[ok], shape, ratio)
     return out
+
+
+def outweighed_cells(flat: np.ndarray, weights: np.ndarray, shape: tuple[int, int, int], ratio: float) -> np.ndarray:
+    """Mask (N,) of the points, given by the flat index of their cell in `shape` and their weight, whose cell
+    weighs less than 1/`ratio` of the heaviest of its 26 neighbours: `outweighed` once the cells are known (the
+    surface columns find the cells once for the shell, the columns and the surface points).
+
+    The neighbourhood maximum is read only at cells that hold points, so the filter runs on their bounding block
+    grown by one cell: every cell beyond it is empty, as the filter's constant-zero border is."""
+    if len(flat) == 0:
+        return np.zeros(0, dtype=bool)
+    cell = np.bincount(flat, weights, int(np.prod(shape))).reshape(shape)
+    ijk = np.unravel_index(flat, shape)
+    block = tuple(slice(max(int(n.min()) - 1, 0), int(n.max()) + 2) for n in ijk)
+    heaviest = ndimage.maximum_filter(cell[block], size=3, mode="constant", cval=0.0)
+    at = tuple(n - b.start for n, b in zip(ijk, block, strict=True))
+    return cell[ijk] * ratio < heaviest[at]

@@ -113,6 +113,7 @@ class ObjectMapper:
         """Fuse every frame of `obs` (one POCD update per object and frame)."""
         timings = dict.fromkeys(TIMING_KEYS, 0.0)
         timings["edf"] = self.timings_ms.get("edf", 0.0)
+        timings["edf_columns"] = self.timings_ms.get("edf_columns", 0.0)
         seen: set[int] = set()
         for frame, points in self.scene_points.each(obs, timings):
             seen |= self._integrate_frame(frame, points, timings)
@@ -142,8 +143,10 @@ class ObjectMapper:
 
     def _completed_edf(self, grid: EDFGrid) -> LocalEDF:
         """Distances at the nodes to the surfaces themselves: to the solid boxes of box-like objects
-        (analytic), to the surface columns of the others (`column_field`)."""
+        (analytic), to the surface columns of the others (`column_field`, whose ms are `timings_ms["edf_columns"]`:
+        the costliest part of the EDF on big surface objects)."""
         p = self.params
+        self.timings_ms["edf_columns"] = 0.0
         axes = window_axes(grid)
         boxes = [o for o in self.objects.values() if o.box_like]
         values = box_field(axes, ((o.solid_pose, o.solid.extent) for o in boxes), p.theta_cutoff_m)
@@ -151,7 +154,10 @@ class ObjectMapper:
         if others:
             points = np.concatenate([o.solid_world_points() for o in others])
             weights = np.concatenate([o.solid_weights() for o in others])
-            values = np.minimum(values, column_field(grid, points, p.theta_cutoff_m, weights, p.surface_shell_ratio))
+            t0 = time.perf_counter()
+            columns = column_field(grid, points, p.theta_cutoff_m, weights, p.surface_shell_ratio)
+            self.timings_ms["edf_columns"] = (time.perf_counter() - t0) * 1e3
+            values = np.minimum(values, columns)
         return LocalEDF(origin=grid.window_origin, voxel=grid.voxel, values=np.ascontiguousarray(values),
                         cutoff=p.theta_cutoff_m)
 

@@ -53,7 +53,7 @@ class DepthCamera:
         self.close()
         m = self.world.model
         m.cam_fovy[m.camera(f"camera_{self.name}").id] = self.params.fovy_deg
-        renderer = self._renderer = mujoco.Renderer(m, self.params.height_px, self.params.width_px)
+        renderer = self._renderer = self._new_renderer()
         renderer.enable_depth_rendering()
         self._version = self.world.model_version
         return renderer
@@ -85,12 +85,26 @@ class DepthCamera:
         t, depth = self.capture()
         return self.frame(t, depth, self.world.robot.camera_pose(self.world.state().q, self.name))
 
+    def _new_renderer(self) -> mujoco.Renderer:
+        """A renderer whose offscreen buffer is this camera's image size and single-sampled (world lock held).
+
+        A GL context allocates its offscreen buffer at the model's `offwidth` × `offheight` with `offsamples`
+        samples when it is made. Depth and segmentation renders both take MuJoCo's segmentation pass, which
+        draws with multisampling off (`mjr_render` in render_gl3.c), so every sample of a pixel holds the same
+        value: the samples (4 by default) and a buffer larger than the image (the world's 1280 × 960) only cost
+        clearing and resolving. Frames bit-identical (116 depth and segmentation renders of the aisle with dark
+        boxes and of a random scene); a 320 × 240 depth render 9.4 -> 4.1 ms on this machine (llvmpipe)."""
+        m = self.world.model
+        m.vis.global_.offwidth, m.vis.global_.offheight = self.params.width_px, self.params.height_px
+        m.vis.quality.offsamples = 0
+        return mujoco.Renderer(m, self.params.height_px, self.params.width_px)
+
     def _ensure_segmentation(self) -> mujoco.Renderer:
         """The segmentation renderer, made anew when the model changed."""
         seg = self._seg_renderer
         if seg is None or self._version != self.world.model_version:
             self._ensure()
-            seg = self._seg_renderer = mujoco.Renderer(self.world.model, self.params.height_px, self.params.width_px)
+            seg = self._seg_renderer = self._new_renderer()
             seg.enable_segmentation_rendering()
         return seg
 
