@@ -28,6 +28,7 @@ import secrets
 import tempfile
 import threading
 import time
+from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -43,6 +44,7 @@ from app.runtime.snapshot import RunState
 from bench.report import bench_args, write_result
 from core.params import LocalizationParams
 from core.sim.world import SceneEditError
+from core.types import MappedObject
 from tasks.sequence_file import EXAMPLES_DIR, load_sequence
 
 log = logging.getLogger("bench.soak")
@@ -125,18 +127,101 @@ class Tally:
     subtasks_failed: int = 0
     box_moves: int = 0
     failures: list[str] = field(default_factory=list)
+    traces: list[str] = field(default_factory=list)
+    """One line per failed subtask: the poses, the localization's health, the mapped objects and unknown space
+    nearest the base (`failure_trace`), to trace a failure without running again."""
     rss: list[tuple[float, float]] = field(default_factory=list)
 
 
+TRAIL_S = 600.0
+"""How far back the pose trail reaches (s of sim time): a failure's nearest mapped object is traced to the base's
+poses when it was created, if that was this recent."""
+
+
+class PoseTrail:
+    """The base's estimated and true pose at every control step over the last `TRAIL_S` (a ring, ~0.1 ms a step):
+    where the robot thought it stood, and stood, when a mapped object was created."""
+
+    def __init__(self, control_rate_hz: float = 10.0) -> None:
+        self.rows: deque[tuple[float, np.ndarray, np.ndarray | None]] = deque(maxlen=int(TRAIL_S * control_rate_hz))
+
+    def record(self, rt: Runtime) -> None:
+        loop = rt.closed_loop
+        true = loop.base_true
+        self.rows.append((rt.time, rt.state.q[:3].copy(), None if true is None else true.copy()))
+
+    def at(self, t: float) -> tuple[np.ndarray, np.ndarray | None] | None:
+        """(estimate, truth) at the row nearest time t; None if t is outside the trail."""
+        if not self.rows or not np.isfinite(t) or t < self.rows[0][0] - 0.2 or t > self.rows[-1][0] + 0.2:
+            return None
+        _, est, true = min(self.rows, key=lambda row: abs(row[0] - t))
+        return est, true
+
+
+def _pose(xyyaw: np.ndarray | None) -> str:
+    if xyyaw is None:
+        return "?"
+    return f"({xyyaw[0]:.2f}, {xyyaw[1]:.2f}, {math.degrees(xyyaw[2]):.0f} deg)"
+
+
+def _footprint_distance(xy: np.ndarray, obj: MappedObject) -> float:
+    """Distance (m) in x-y from a point to an object's box footprint (0 inside it)."""
+    R, c = obj.pose[:2, :2], obj.pose[:2, 3]
+    local = np.abs((np.asarray(xy, float) - c) @ R)
+    return float(np.linalg.norm(np.maximum(local - obj.extent[:2] / 2, 0.0)))
+
+
+def failure_trace(rt: Runtime, trail: PoseTrail, n_objects: int = 3, unknown_within_m: float = 1.5) -> str:
+    """One line to trace a failed subtask: the base's true and estimated pose and the localization's health, the
+    `n_objects` mapped objects nearest the estimated base (id, centre, yaw, extent, E[v], observations, created
+    when and by which camera with the base's estimated and true pose then, last seen) and the unknown floor cells
+    within `unknown_within_m` (the planner counts them as obstacles)."""
+    loop = rt.closed_loop
+    est = rt.state.q[:3]
+    health = loop.health(rt.time)
+    loc = ("off" if health is None else
+           f"3sigma {3 * health.sigma_xy_m * 100:.1f} cm, accepted {health.accepted}, rejected {health.rejected}, "
+           f"degenerate {health.degenerate}, since accepted {health.since_accepted_s:.1f} s"
+           + (f", untrusted: {health.untrusted}" if health.untrusted else ""))
+    with loop.using_map() as world_map:
+        snap = world_map.snapshot()
+    near = sorted(snap.objects, key=lambda o: _footprint_distance(est[:2], o))[:n_objects]
+    parts = []
+    for o in near:
+        yaw = math.degrees(math.atan2(o.pose[1, 0], o.pose[0, 0]))
+        then = trail.at(o.first_seen_t)
+        created = (f"created t {o.first_seen_t:.1f} by {o.first_camera or '?'}"
+                   + (f" (base est {_pose(then[0])}, true {_pose(then[1])})" if then else ""))
+        parts.append(f"#{o.id} at ({o.pose[0, 3]:.2f}, {o.pose[1, 3]:.2f}, {o.pose[2, 3]:.2f}) yaw {yaw:.0f} deg "
+                     f"extent ({o.extent[0]:.2f}, {o.extent[1]:.2f}, {o.extent[2]:.2f}), "
+                     f"{_footprint_distance(est[:2], o):.2f} m from base, E[v] {o.consistency:.2f}, "
+                     f"obs {o.observations}, {created}, last seen t {o.last_seen_t:.1f}")
+    edf = rt.last_edf
+    space = edf.unknown if edf is not None else None
+    unknown = "none"
+    if space is not None and len(space.centres):
+        d = np.linalg.norm(space.centres - est[:2], axis=1)
+        close = d < unknown_within_m
+        if close.any():
+            i = int(np.argmin(d))
+            unknown = (f"{int(close.sum())} cells within {unknown_within_m} m, nearest ({space.centres[i, 0]:.2f}, "
+                       f"{space.centres[i, 1]:.2f}) {d[i]:.2f} m")
+    return (f"true base {_pose(loop.base_true)}, estimate {_pose(est)}; localization {loc}; "
+            f"nearest mapped: {'; '.join(parts) or 'none'}; unknown floor: {unknown}")
+
+
 class BoxMover:
-    """The `on_control` callback: every `MOVE_EVERY_S` of sim time, one movable box to a random free spot."""
+    """The `on_control` callback: every `MOVE_EVERY_S` of sim time, one movable box to a random free spot (and the
+    pose trail, every step)."""
 
     def __init__(self, tally: Tally, goals: np.ndarray, seed: int = 0) -> None:
         self.tally, self.goals = tally, goals
         self.rng = np.random.default_rng(seed)
         self.next_t = MOVE_EVERY_S
+        self.trail = PoseTrail()
 
     def __call__(self, rt: Runtime) -> None:
+        self.trail.record(rt)
         if rt.time + 1e-9 < self.next_t:
             return
         self.next_t = rt.time + MOVE_EVERY_S
@@ -177,13 +262,16 @@ def _scene_near_robot(rt: Runtime, radius_m: float = 2.5) -> str:
     return f"robot at ({x:.2f}, {y:.2f}, {math.degrees(yaw):.0f} deg), boxes within {radius_m} m: {', '.join(near)}"
 
 
-def _end_lap(rt: Runtime, tally: Tally) -> None:
+def _end_lap(rt: Runtime, tally: Tally, trail: PoseTrail) -> None:
     progress = rt.sequencer.progress
     tally.subtasks_done += sum(p.outcome.value == "done" for p in progress)
     failed = [p for p in progress if p.outcome.value == "failed"]
     tally.subtasks_failed += len(failed)
     if failed:
         tally.failures += [f"t = {rt.time:.0f} s: {p.name}: {p.message}; {_scene_near_robot(rt)}" for p in failed]
+        trace = f"t = {rt.time:.1f} s: {failed[0].name}: {failed[0].message}; {failure_trace(rt, trail)}"
+        tally.traces.append(trace)
+        log.warning("failed subtask: %s", trace)
     tally.laps += 1
 
 
@@ -213,10 +301,10 @@ def lockstep_soak(sim_minutes: float, seed: int = 0, localization: bool = False)
                 rt.reset()
                 mover.next_t = rt.time + MOVE_EVERY_S
             elif rt.run_state in (RunState.FINISHED, RunState.FAILED):
-                _end_lap(rt, tally)
+                _end_lap(rt, tally, mover.trail)
     tally.collisions += len(rt.world.collisions)
     if rt.run_state == RunState.RUNNING:  # the lap under way when time ran out
-        _end_lap(rt, tally)
+        _end_lap(rt, tally, mover.trail)
         tally.laps -= 1
     tally.rss.append((time.monotonic(), rss_mb()))
     return tally
@@ -385,7 +473,8 @@ def main(argv: list[str] | None = None) -> None:
         print(cycles.growth_note())
     write_result("soak", figures, units, {k: v for k, v in targets.items() if k in figures}, quick=args.quick,
                  extra={"faults": lockstep_faults + api_faults,
-                        "subtask_failures": soak.failures[:50] if soak is not None else [], **api})
+                        "subtask_failures": soak.failures[:50] if soak is not None else [],
+                        "failure_traces": soak.traces[:50] if soak is not None else [], **api})
 
 
 if __name__ == "__main__":

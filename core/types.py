@@ -123,6 +123,10 @@ class MappedObject:
     observations: int = 0
     last_seen_t: float = float("nan")
     """Time (s) of the newest frame that observed the object (matched it or created it)."""
+    first_seen_t: float = float("nan")
+    """Time (s) of the frame that created the object (to trace a phantom to the moment and camera it came from)."""
+    first_camera: str = ""
+    """The camera of the frame that created the object ('' not known)."""
     sides_seen: np.ndarray | None = None
     """Which side faces of its box its well-supported surface shows (2×2 bool: the box's x, y axes; −, + side);
     None: not known. An unseen side is only as far as the top was seen (`core.mapping.box_fit.seen_sides`)."""

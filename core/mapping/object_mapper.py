@@ -194,6 +194,8 @@ class ObjectMapper:
             self._remove_changed()
             self._create_all(found.leftovers, view.camera_position)
         for obj in self.objects.values():
+            if np.isnan(obj.last_seen_t):  # created by this frame
+                obj.first_seen_t, obj.first_camera = frame.t, frame.camera
             if obj.id in matched or np.isnan(obj.last_seen_t):  # matched now, or created by this frame
                 obj.last_seen_t = frame.t
         self.frames_integrated += 1

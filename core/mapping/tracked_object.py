@@ -94,6 +94,9 @@ class TrackedObject:
         self.observations = 1
         self.last_seen_t = float("nan")
         """Time (s) of the newest frame that observed the object (set by the mapper)."""
+        self.first_seen_t = float("nan")
+        self.first_camera = ""
+        """When and by which camera the object was created (set by the mapper with `last_seen_t`)."""
         self.updates = 0
         self.status = ObjectStatus.ACTIVE
         self._shape: _Shape | None = None
@@ -339,4 +342,5 @@ class TrackedObject:
     def snapshot(self) -> MappedObject:
         return MappedObject(id=self.id, pose=self.pose, extent=self.extent.copy(), points=self.world_points.copy(),
                             posterior=self.posterior, status=self.status, observations=self.observations,
-                            last_seen_t=self.last_seen_t, sides_seen=self._current_shape().sides_seen.copy())
+                            last_seen_t=self.last_seen_t, first_seen_t=self.first_seen_t,
+                            first_camera=self.first_camera, sides_seen=self._current_shape().sides_seen.copy())
