@@ -183,13 +183,21 @@ def run_sequence(rt: Runtime, sequence: TaskSequence, max_s: float, on_control) 
         progress = rt.sequencer.progress
         outcomes += [{"name": p.name, "outcome": p.outcome.value, "elapsed_s": p.elapsed_s, "message": p.message}
                      for p in progress if p.outcome in (Outcome.DONE, Outcome.FAILED)]
-        if rt.run_state != RunState.FAILED:
-            break
         done = sum(p.outcome in (Outcome.DONE, Outcome.FAILED) for p in progress)
         remaining = remaining[done:]
+        if rt.run_state != RunState.FAILED:
+            break
         if isinstance(on_control, _Laps):
             on_control.done_offset += done
-    return outcomes
+    return outcomes + [not_reached(s.name, rt) for s in remaining]
+
+
+def not_reached(name: str, rt: Runtime) -> dict:
+    """The outcome of a subtask the run never reached: it faulted, stopped or ran out of time before it, with why."""
+    why = f"the run ended {rt.run_state.value}" if rt.run_state != RunState.RUNNING else "out of the run's time"
+    fault = f": {rt.fault}" if rt.fault else ""
+    return {"name": name, "outcome": "not_reached", "elapsed_s": 0.0, "message": f"not reached: {why} at "
+            f"t = {rt.time:.1f} s{fault}"}
 
 
 def trial(params: dict) -> dict:
@@ -302,7 +310,7 @@ def report(results: list[dict], pngs: list[str], out_dir: Path, quick: bool) -> 
     errors = "\n".join(f"- {r['part']} {r['map']}: {r['error']}" for r in results if "error" in r) or "None."
     sections = [("Setup", __doc__.split("\n\n", 2)[2]),
                 ("Ours beside the paper", f"Paper: {PAPER}.\n\nOurs:\n\n{overall}\n\nPer lap:\n\n{laps}"),
-                ("Subtasks that failed (skipped, the run went on)", failed),
+                ("Subtasks that failed (skipped, the run went on) or were not reached", failed),
                 ("Figures", "\n\n".join(f"![{p}]({p})" for p in pngs)),
                 ("Crashed trials", errors)]
     write_markdown(out_dir, NAME, "E4 — long-term: aisle laps with pick-ups while boxes are rearranged", sections,
