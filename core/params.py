@@ -679,7 +679,9 @@ class LocalizationParams:
     to 15.9 cm): not better on both seeds (docs/decisions.md, "Localization", issue 25 fourth round)."""
     keyframe_step_m: float = 0.3
     keyframe_step_rad: float = math.radians(15.0)
-    """A frame is kept as a keyframe (a node of the pose graph) only where no keyframe lies within these (m, rad)."""
+    """A frame is kept as a keyframe (a node of the pose graph) only where no keyframe lies within these (m, rad); a
+    loop closure adds a factor only once the base moved this far from the last one's (a base standing still is one
+    view: in between, an accepted loop-closure registration corrects the filter alone)."""
     keyframe_label_m: float = 0.1
     keyframe_floor_m: float = 0.05
     """A keyframe keeps the frame's points higher than `keyframe_floor_m` (m) that lie within `keyframe_label_m` (m)
@@ -696,10 +698,6 @@ class LocalizationParams:
     """A loop closure registers first within clip(radius_sigmas σ + radius_margin_m, radius_min_m,
     loop_radius_max_m), σ from odometry and loop closures alone (not the filter's), then again within
     `loop_fine_radius_m` from there."""
-    loop_period_s: float = 2.0
-    """A loop closure adds a factor to the graph (and optimises it) once the base moved `keyframe_step_m` or
-    `keyframe_step_rad` from the last one, or this long (s) after it; in between, an accepted loop-closure registration
-    corrects the filter alone (an EKF update against the keyframes)."""
     loop_sigma_m: float = 0.03
     loop_sigma_rad: float = 0.01
     """Measurement std (m, rad) of a loop closure along a well-constrained direction (inflated as `sigma_xy_m`)."""
