@@ -670,13 +670,14 @@ class LocalizationParams:
     search_sigma_rad: float = 0.02
     """After re-anchoring, the covariance P restarts at these stds (m, rad): what one registration from a far guess
     is good to."""
-    loop_closure: bool = False
+    loop_closure: bool = True
     """A pose graph of keyframes closed onto the places an earlier visit kept (`core/localization/loop_closure.py`;
     docs/method.md, "State estimation", "Loop closure"): where an earlier visit's keyframe is near, frames register
     against those keyframes (placed by the optimised graph) instead of the map's surfaces, and T_world←odom follows
-    the optimised graph. Off by default: on E4's three aisle laps it cut seed 0 from 26.3 to 8.3 cm ATE RMSE (laps 2–3
-    no longer grow) but seed 1, where the filter alone did not drift over the laps, went from 8.1 to 8.6 cm (max 13.3
-    to 15.9 cm): not better on both seeds (docs/decisions.md, "Localization", issue 25 fourth round)."""
+    the optimised graph. On by default within localization (which itself is off by default): on E4's three aisle laps
+    (seeds 0 / 1 / 2, same code) ATE RMSE 7.2 / 6.2 / 6.0 cm against the filter alone's 20.7 / 6.9 / 8.7 cm, lap 3
+    4.2 / 6.2 / 4.8 cm against 28.7 / 6.8 / 11.1 cm, 45 / 45 subtasks against 44 (docs/decisions.md, "Localization",
+    issue 25 fifth round)."""
     keyframe_step_m: float = 0.3
     keyframe_step_rad: float = math.radians(15.0)
     """A frame is kept as a keyframe (a node of the pose graph) only where no keyframe lies within these (m, rad); a
