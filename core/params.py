@@ -670,6 +670,47 @@ class LocalizationParams:
     search_sigma_rad: float = 0.02
     """After re-anchoring, the covariance P restarts at these stds (m, rad): what one registration from a far guess
     is good to."""
+    loop_closure: bool = True
+    """A pose graph of keyframes closed onto the places an earlier visit kept (`core/localization/loop_closure.py`;
+    docs/method.md, "State estimation", "Loop closure"): where an earlier visit's keyframe is near, frames register
+    against those keyframes (placed by the optimised graph) instead of the map's surfaces, and T_world←odom follows
+    the optimised graph. On by default within localization (which itself is off by default): on E4's three aisle laps
+    (seeds 0 / 1 / 2, same code) ATE RMSE 7.2 / 6.2 / 6.0 cm against the filter alone's 20.7 / 6.9 / 8.7 cm, lap 3
+    4.2 / 6.2 / 4.8 cm against 28.7 / 6.8 / 11.1 cm, 45 / 45 subtasks against 44 (docs/decisions.md, "Localization",
+    issue 25 fifth round)."""
+    keyframe_step_m: float = 0.3
+    keyframe_step_rad: float = math.radians(15.0)
+    """A frame is kept as a keyframe (a node of the pose graph) only where no keyframe lies within these (m, rad); a
+    loop closure adds a factor only once the base moved this far from the last one's (a base standing still is one
+    view: in between, an accepted loop-closure registration corrects the filter alone)."""
+    keyframe_label_m: float = 0.1
+    keyframe_floor_m: float = 0.05
+    """A keyframe keeps the frame's points higher than `keyframe_floor_m` (m) that lie within `keyframe_label_m` (m)
+    of a surface the map trusts, labelled with its object's id (the arm, noise and untrusted objects stay out)."""
+    loop_min_age_s: float = 40.0
+    """Loop closures go onto keyframes exposed at least this long ago (s of robot time): an earlier visit."""
+    loop_search_m: float = 1.0
+    loop_search_rad: float = math.radians(60.0)
+    """The anchor: the nearest keyframe of an earlier visit within these (m, rad) of the estimate."""
+    loop_submap_m: float = 2.0
+    """The submap: the earlier visits' keyframes within this (m) of the anchor."""
+    loop_radius_max_m: float = 0.6
+    loop_fine_radius_m: float = 0.15
+    """A loop closure registers first within clip(radius_sigmas σ + radius_margin_m, radius_min_m,
+    loop_radius_max_m), σ from odometry and loop closures alone (not the filter's), then again within
+    `loop_fine_radius_m` from there."""
+    loop_sigma_m: float = 0.03
+    loop_sigma_rad: float = 0.01
+    """Measurement std (m, rad) of a loop closure along a well-constrained direction (inflated as `sigma_xy_m`)."""
+    graph_follows_map: bool = True
+    """The pose graph's nodes are tied by the odometry with the map registrations' corrections composed in (the filter's
+    trajectory between loop closures); False: by the wheel odometry alone (then a loop closure onto a place mid-lap
+    put the lap's nodes back onto the odometry's drift)."""
+    graph_odometry_floor_m: float = 0.002
+    graph_odometry_floor_rad: float = 0.001
+    """Odometry between two nodes is trusted at most to these stds (m, rad), however short the step."""
+    graph_iterations: int = 5
+    """Gauss–Newton iterations after each loop closure (at most)."""
 
     def __post_init__(self) -> None:
         check_choices(self)

@@ -9,6 +9,11 @@ passes the gates (`gates.py`), its unconstrained directions are masked (`degener
 (`pose_filter.py`) becomes due at the frame's stamp plus the modelled processing time (`apply_due`), so
 lockstep runs stay deterministic. Until enough trusted surface is in view, odometry alone is in charge.
 
+Loop closure (`loop_closure.py`, `LocalizationParams.loop_closure`): the registered frames are kept as keyframes of a
+pose graph; where an earlier visit's keyframe is in reach, the frame registers against those keyframes (placed by the
+optimised graph) instead of the map's surfaces, and an accepted closure re-optimises the graph, T_world←odom then
+following the frame's optimised node.
+
 Thread use: `correct` is the slow part and touches only the filter's covariance and the pending queue under
 `lock`; `predict`, `apply_due` and `world_pose` are cheap (a control thread may call them; issue 28 runs
 `correct` on a thread of its own in live mode).
@@ -29,6 +34,7 @@ from core.localization import degeneracy, gates, health, lost, registration, sca
 from core.localization.frozen_surfaces import FrozenSurfaces
 from core.localization.gates import Verdict
 from core.localization.health import LocalizationHealth
+from core.localization.loop_closure import LoopClosure
 from core.localization.pose_filter import PoseFilter
 from core.localization.reference import FLOOR_ID, Reference, build
 from core.params import LocalizationParams
@@ -60,6 +66,8 @@ class Correction:
     apply_t: float = math.nan
     pose: np.ndarray | None = None
     """The base's world pose at the frame's exposure after the correction (accepted ones only)."""
+    loop: bool = False
+    """Whether the frame was registered against an earlier visit's keyframes (a loop closure), not the map."""
     jump: bool = True
     """A χ² refusal: whether its innovation (along the constrained directions) is as large as a jump
     (`lost_jump_m`, `lost_jump_rad`); a smaller one says the filter was too sure, not that the base slipped."""
@@ -97,6 +105,13 @@ class Localizer:
         surfaces as they are now."""
         self.lost = lost.LostWatch(p)
         """Refusals in a row, the lost state, the frames' fate and the global search (`lost.py`)."""
+        self.loops = LoopClosure(p) if p.loop_closure else None
+        """The pose graph of keyframes and its loop closures (`loop_closure.py`); None: the filter alone."""
+        self._T_chain = np.zeros(3)
+        """T_world←odom with the map registrations' corrections alone (`graph_follows_map`; loop closures and
+        re-anchorings left out): the pose graph's nodes are tied by the increments of T_chain ∘ odometry."""
+        self._T_log: deque[tuple[float, np.ndarray]] = deque([(-math.inf, np.zeros(3))], maxlen=10_000)
+        """(robot time, T_world←odom from then on): the odometry pose of a frame's base from its world pose."""
 
     # --- cheap: every tick ----------------------------------------------------------------------------
 
@@ -128,6 +143,10 @@ class Localizer:
             if self.lost.resume_t is not None and self.lost.resume_t <= t + 1e-9:  # re-anchored: found again
                 self.lost.applied(t, self.lost.resume_delta)
                 self.status = LocalizationStatus.LOCALIZED
+                if self.loops is not None and np.any(self.lost.resume_delta):
+                    self.loops.break_chain()  # re-anchored after a jump: no odometry factor across it
+            if changed:
+                self._T_log.append((t, self.filter.T_world_odom.copy()))
         return changed
 
     def estimate(self, t: float, odom_pose: np.ndarray) -> PoseEstimate:
@@ -182,6 +201,10 @@ class Localizer:
             with self.lock:
                 sigma = self.filter.sigma_xy_m(p.max_range_m / 2)
             surface = self.frozen.update(surface, sigma, self._excluded)
+        if self.loops is not None:
+            closed = self._close(frame, np.asarray(base_pose, float), surface)
+            if closed is not None:
+                return self._record(closed)
         ref, target, ref_ms = self.prepared_reference(surface, np.asarray(base_pose[:2], float))
         trusted = ref.object_ids != FLOOR_ID
         if np.sum(scan.in_view(ref.points[trusted], frame, p.max_range_m)) < p.min_trusted_points:
@@ -221,6 +244,12 @@ class Localizer:
                 self._grow(correction.innovation)
         if correction.verdict == Verdict.ACCEPTED:
             self._agreed.update({i: frame.t for i, d in fit.items() if d <= p.disagreement_m})
+        if self.loops is not None:
+            pose = correction.pose if correction.pose is not None else np.asarray(base_pose, float)
+            with self.lock:
+                P = self.filter.P.copy()
+            chain = se2.compose(self._T_chain, self._odom_at(frame.t, base_pose))
+            self.loops.after_map_registration(frame, np.asarray(base_pose, float), pose, chain, P, pts, ref, target)
         return self._record(correction)
 
     def _register_without(self, ids: tuple[int, ...], frame: DepthFrame, base_pose: np.ndarray,
@@ -233,6 +262,74 @@ class Localizer:
         ref, target, ref_ms = self.prepared_reference(surface, np.asarray(base_pose[:2], float))
         result = registration.register(target, source, frame.T_world_camera, radius, self.params.max_iterations)
         return surface, ref, target, result, ref_ms
+
+    def _odom_at(self, t: float, base_pose: np.ndarray) -> np.ndarray:
+        """The odometry pose of the base whose world pose at robot time t was `base_pose` (T_world←odom then)."""
+        return se2.compose(se2.inverse(self._world_from_odom_at(t)), np.asarray(base_pose, float))
+
+    def _world_from_odom_at(self, t: float) -> np.ndarray:
+        for since, T in reversed(self._T_log):
+            if since <= t + 1e-9:
+                return T
+        return self._T_log[0][1]
+
+    def _close(self, frame: DepthFrame, base_pose: np.ndarray, surface: ReferenceSurface | None) -> Correction | None:
+        """A loop closure (`loop_closure.py`) of the frame onto an earlier visit's keyframes, when one is near and it
+        passes its gates: the correction, due at frame.t + processing_s, T_world←odom following the optimised graph and
+        P its covariance where that is surer than the filter's. None: no earlier visit here, or refused (the map's
+        surfaces are then the reference)."""
+        p = self.params
+        assert self.loops is not None
+        if self.loops.anchor(base_pose, frame.t) is None:
+            return None
+        source, n = registration.thin(scan.camera_points(frame, p.stride_px, p.max_range_m), p.source_voxel_m)
+        if n < p.min_source_points:
+            return None
+        live = set() if surface is None else set(np.unique(np.asarray(surface.object_ids, int)).tolist())
+        live -= set(self._excluded)
+        with self.lock:
+            P = self.filter.P.copy()
+        chain = se2.compose(self._T_chain, self._odom_at(frame.t, base_pose))
+        c = self.loops.close(frame, base_pose, chain, P, source, live, self._disagreeing)
+        if c is None:
+            return None
+        if c.disagreeing:
+            for i in c.disagreeing:
+                self._excluded[i] = frame.t + p.exclusion_s
+            with self.lock:
+                self._evidence.extend(c.disagreeing)
+        if c.verdict != Verdict.ACCEPTED:
+            self.counts[f"loop_{c.verdict.value}"] += 1
+            return None
+        self.counts["loop_accepted"] += 1
+        base = Correction(frame.t, Verdict.ACCEPTED, dof=c.dof, nis=c.nis, inlier_share=c.inlier_share,
+                          registration_ms=c.registration_ms, reference_ms=c.reference_ms, disagreeing=c.disagreeing,
+                          loop=True)
+        if c.delta is None or c.P is None:  # no factor due: the filter alone, against the keyframes
+            assert c.measured is not None and c.directions is not None
+            with self.lock:
+                update = self.filter.update(base_pose, c.measured, c.directions, p.sigma_xy_m, p.sigma_yaw_rad,
+                                            5.0 * p.degenerate_information)
+                if not gates.chi2_passes(update.nis, update.dof, p):
+                    # the keyframes held against an over-sure filter: P grows by an innovation under a jump's size
+                    innovation = _constrained_innovation(c.measured, base_pose, c.directions)
+                    jump = self._is_jump(innovation)
+                    if not jump:
+                        self.filter.P = self.filter.P + np.diag(innovation**2)
+                    return replace(base, verdict=Verdict.CHI2, nis=update.nis, jump=jump, innovation=innovation)
+                self.filter.P = update.P
+                apply_t = frame.t + p.processing_s
+                self.schedule(apply_t, update.delta)
+                self.status = LocalizationStatus.LOCALIZED
+            return replace(base, delta=update.delta, nis=update.nis, apply_t=apply_t,
+                           pose=se2.compose(update.delta, base_pose))
+        with self.lock:
+            if _position_std(c.P, p.max_range_m / 2) < _position_std(self.filter.P, p.max_range_m / 2):
+                self.filter.P = c.P  # surer after the closure; never less sure: P also grows the margin (health)
+            apply_t = frame.t + p.processing_s
+            self.schedule(apply_t, c.delta)
+            self.status = LocalizationStatus.LOCALIZED
+        return replace(base, delta=c.delta, apply_t=apply_t, pose=c.pose)
 
     def _agreed_before(self, fit: dict[int, float], t: float) -> tuple[int, ...]:
         """The objects that fit a χ²-refused pose and fitted an accepted one within `agreed_recently_s`: the pose
@@ -278,6 +375,8 @@ class Localizer:
             apply_t = frame.t + p.processing_s
             self.schedule(apply_t, update.delta)
             self.status = LocalizationStatus.LOCALIZED
+            if p.graph_follows_map:
+                self._T_chain = se2.compose(update.delta, self._T_chain)
         if dirs.degenerate:
             self.counts[DEGENERATE] += 1
         return replace(base, delta=update.delta, dof=update.dof, nis=update.nis, apply_t=apply_t,
@@ -312,6 +411,15 @@ class Localizer:
                 continue
             residual[int(i)] = float(np.median(d[mine]))
         return residual
+
+    def _disagreeing(self, ref: Reference, target: registration.Target, source, T: np.ndarray
+                     ) -> tuple[int, ...] | None:
+        """The objects whose frame points, placed by the camera pose T, sit farther than `disagreement_m` (median)
+        from the reference; None when most of those judged do (then the pose, not the objects, is in doubt). The
+        loop closure's vote (`loop_closure.py`)."""
+        residual = self._object_residuals(ref, target, source, T)
+        off = tuple(i for i, d in residual.items() if d > self.params.disagreement_m)
+        return None if off and 2 * len(off) > len(residual) else off
 
     def _view_agrees(self, fit: dict[int, float]) -> bool:
         """Whether at least two objects were judged and every one fits at the registered pose (`fit`: residuals
@@ -375,6 +483,11 @@ class Localizer:
                                  correction.jump, correction.off):
                 self.status = LocalizationStatus.LOST
         return correction
+
+
+def _position_std(P: np.ndarray, lever_m: float) -> float:
+    """The largest x-y std of P plus what its heading std sweeps at `lever_m` (m)."""
+    return float(np.sqrt(np.max(np.linalg.eigvalsh(P[:2, :2]))) + lever_m * np.sqrt(max(float(P[2, 2]), 0.0)))
 
 
 def _constrained_innovation(measured: np.ndarray, predicted: np.ndarray, dirs: degeneracy.Directions

@@ -30,6 +30,18 @@ class Update:
     P: np.ndarray
 
 
+def measurement_information(dirs: Directions, sigma_xy_m: float, sigma_yaw_rad: float, inflate_below: float
+                            ) -> tuple[np.ndarray, np.ndarray]:
+    """The measurement model along the constrained directions: Hm = Uᵀ S (dof × 3, on x, y, yaw) and its noise R
+    (a fixed std a direction, variance inflated by inflate_below / λ where the information λ is low); the pose's
+    information from the measurement is Hmᵀ R⁻¹ Hm."""
+    U = dirs.vectors[:, dirs.constrained]
+    lever = dirs.scale[2, 2]
+    base_var = (U[0] ** 2 + U[1] ** 2) * sigma_xy_m**2 + U[2] ** 2 * (lever * sigma_yaw_rad) ** 2
+    inflation = np.maximum(1.0, inflate_below / dirs.values[dirs.constrained])
+    return U.T @ dirs.scale, np.diag(base_var * inflation)
+
+
 class PoseFilter:
     """T_world←odom (x, y, yaw) and P, the covariance of the base's world pose."""
 
@@ -48,14 +60,9 @@ class PoseFilter:
         """The update a measured base pose (world, at the frame's exposure) would make, along the constrained
         directions only; nothing is changed here (`apply` does)."""
         nu = np.array([measured[0] - predicted[0], measured[1] - predicted[1], wrap_angle(measured[2] - predicted[2])])
-        U = dirs.vectors[:, dirs.constrained]
-        if U.shape[1] == 0:
+        if dirs.dof == 0:
             return Update(np.zeros(3), 0.0, 0, self.P)
-        lever = dirs.scale[2, 2]
-        base_var = (U[0] ** 2 + U[1] ** 2) * sigma_xy_m**2 + U[2] ** 2 * (lever * sigma_yaw_rad) ** 2
-        inflation = np.maximum(1.0, inflate_below / dirs.values[dirs.constrained])
-        R = np.diag(base_var * inflation)
-        Hm = U.T @ dirs.scale
+        Hm, R = measurement_information(dirs, sigma_xy_m, sigma_yaw_rad, inflate_below)
         S = Hm @ self.P @ Hm.T + R
         y = Hm @ nu
         S_inv = np.linalg.inv(S)
@@ -67,7 +74,7 @@ class PoseFilter:
         corrected = np.array([predicted[0] + delta_state[0], predicted[1] + delta_state[1],
                               predicted[2] + delta_state[2]])
         delta = se2.compose(corrected, se2.inverse(predicted))
-        return Update(delta, nis, U.shape[1], 0.5 * (P + P.T))
+        return Update(delta, nis, dirs.dof, 0.5 * (P + P.T))
 
     def apply(self, delta: np.ndarray) -> None:
         """T_world←odom ← Δ ∘ T_world←odom."""
