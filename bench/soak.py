@@ -46,6 +46,7 @@ from core.params import LocalizationParams
 from core.sim.world import SceneEditError
 from core.types import MappedObject
 from tasks.sequence_file import EXAMPLES_DIR, load_sequence
+from tasks.validation import Obstacle, box_distance
 
 log = logging.getLogger("bench.soak")
 
@@ -165,10 +166,10 @@ def _pose(xyyaw: np.ndarray | None) -> str:
 
 
 def _footprint_distance(xy: np.ndarray, obj: MappedObject) -> float:
-    """Distance (m) in x-y from a point to an object's box footprint (0 inside it)."""
-    R, c = obj.pose[:2, :2], obj.pose[:2, 3]
-    local = np.abs((np.asarray(xy, float) - c) @ R)
-    return float(np.linalg.norm(np.maximum(local - obj.extent[:2] / 2, 0.0)))
+    """Distance (m) in x-y from a point to an object's box footprint (0 inside it; the target checks' box_distance)."""
+    yaw = math.atan2(obj.pose[1, 0], obj.pose[0, 0])
+    box = Obstacle(str(obj.id), tuple(obj.pose[:3, 3]), tuple(obj.extent), yaw)
+    return max(float(box_distance(box, np.asarray(xy, float)[:2])), 0.0)
 
 
 def failure_trace(rt: Runtime, trail: PoseTrail, n_objects: int = 3, unknown_within_m: float = 1.5) -> str:
