@@ -75,3 +75,12 @@ def directions(H_local: np.ndarray, T_world_camera: np.ndarray, base_xy: np.ndar
     Hs = inv_scale @ H3 @ inv_scale / max(inliers, 1)
     values, vectors = np.linalg.eigh(0.5 * (Hs + Hs.T))
     return Directions(values, vectors, values >= threshold, scale)
+
+
+def rms_lever(points_camera: np.ndarray, T_world_camera: np.ndarray, base_xy: np.ndarray) -> float:
+    """RMS horizontal distance (m, at least 0.1) of the registered points (camera frame, placed by T_world_camera)
+    from the base: a yaw dψ moves them about this far per radian, so yaw in units of lever·dψ compares with x and y
+    (the floor gives ~0.5 per inlier along every such direction)."""
+    T = T_world_camera
+    xy = (points_camera @ T[:3, :3].T + T[:3, 3])[:, :2] - base_xy
+    return max(float(np.sqrt(np.mean(np.sum(xy**2, axis=1)))), 0.1)

@@ -35,7 +35,7 @@ from core.localization.frozen_surfaces import FrozenSurfaces
 from core.localization.gates import Verdict
 from core.localization.health import LocalizationHealth
 from core.localization.loop_closure import LoopClosure
-from core.localization.pose_filter import PoseFilter
+from core.localization.pose_filter import PoseFilter, position_std
 from core.localization.reference import FLOOR_ID, Reference, build
 from core.params import LocalizationParams
 from core.types import DepthFrame, LocalizationStatus, PoseEstimate, ReferenceSurface
@@ -201,15 +201,20 @@ class Localizer:
             with self.lock:
                 sigma = self.filter.sigma_xy_m(p.max_range_m / 2)
             surface = self.frozen.update(surface, sigma, self._excluded)
+        thinned = None
         if self.loops is not None:
-            closed = self._close(frame, np.asarray(base_pose, float), surface)
-            if closed is not None:
-                return self._record(closed)
+            anchor = self.loops.anchor(np.asarray(base_pose, float), frame.t)
+            if anchor is not None:
+                thinned = registration.thin(scan.camera_points(frame, p.stride_px, p.max_range_m), p.source_voxel_m)
+                closed = self._close(anchor, frame, np.asarray(base_pose, float), surface, *thinned)
+                if closed is not None:
+                    return self._record(closed)
         ref, target, ref_ms = self.prepared_reference(surface, np.asarray(base_pose[:2], float))
         trusted = ref.object_ids != FLOOR_ID
         if np.sum(scan.in_view(ref.points[trusted], frame, p.max_range_m)) < p.min_trusted_points:
             return self._record(Correction(frame.t, Verdict.NO_REFERENCE, reference_ms=ref_ms))
-        source, n = registration.thin(scan.camera_points(frame, p.stride_px, p.max_range_m), p.source_voxel_m)
+        source, n = thinned or registration.thin(scan.camera_points(frame, p.stride_px, p.max_range_m),
+                                                 p.source_voxel_m)
         if n < p.min_source_points:
             return self._record(Correction(frame.t, Verdict.TOO_FEW_POINTS, reference_ms=ref_ms))
         with self.lock:
@@ -273,16 +278,14 @@ class Localizer:
                 return T
         return self._T_log[0][1]
 
-    def _close(self, frame: DepthFrame, base_pose: np.ndarray, surface: ReferenceSurface | None) -> Correction | None:
-        """A loop closure (`loop_closure.py`) of the frame onto an earlier visit's keyframes, when one is near and it
-        passes its gates: the correction, due at frame.t + processing_s, T_world←odom following the optimised graph and
-        P its covariance where that is surer than the filter's. None: no earlier visit here, or refused (the map's
-        surfaces are then the reference)."""
+    def _close(self, anchor: int, frame: DepthFrame, base_pose: np.ndarray, surface: ReferenceSurface | None,
+               source, n: int) -> Correction | None:
+        """A loop closure (`loop_closure.py`) of the frame (`source`: its `n` thinned points) onto the keyframes an
+        earlier visit kept around `anchor`, when it passes its gates: the correction, due at frame.t + processing_s,
+        T_world←odom following the optimised graph and P its covariance where that is surer than the filter's. None:
+        refused (the map's surfaces are then the reference, registering the same thinned points)."""
         p = self.params
         assert self.loops is not None
-        if self.loops.anchor(base_pose, frame.t) is None:
-            return None
-        source, n = registration.thin(scan.camera_points(frame, p.stride_px, p.max_range_m), p.source_voxel_m)
         if n < p.min_source_points:
             return None
         live = set() if surface is None else set(np.unique(np.asarray(surface.object_ids, int)).tolist())
@@ -290,7 +293,7 @@ class Localizer:
         with self.lock:
             P = self.filter.P.copy()
         chain = se2.compose(self._T_chain, self._odom_at(frame.t, base_pose))
-        c = self.loops.close(frame, base_pose, chain, P, source, live, self._disagreeing)
+        c = self.loops.close(anchor, frame, base_pose, chain, P, source, live, self._disagreeing)
         if c is None:
             return None
         if c.disagreeing:
@@ -324,7 +327,7 @@ class Localizer:
             return replace(base, delta=update.delta, nis=update.nis, apply_t=apply_t,
                            pose=se2.compose(update.delta, base_pose))
         with self.lock:
-            if _position_std(c.P, p.max_range_m / 2) < _position_std(self.filter.P, p.max_range_m / 2):
+            if position_std(c.P, p.max_range_m / 2) < self.filter.sigma_xy_m(p.max_range_m / 2):
                 self.filter.P = c.P  # surer after the closure; never less sure: P also grows the margin (health)
             apply_t = frame.t + p.processing_s
             self.schedule(apply_t, c.delta)
@@ -357,7 +360,7 @@ class Localizer:
         failure = gates.registration_verdict(result.converged, result.inliers, result.source_points, p)
         if failure is not None:
             return replace(base, verdict=failure)
-        lever = _rms_lever(result, source_points, base_pose[:2])
+        lever = degeneracy.rms_lever(source_points, result.T_world_camera, base_pose[:2])
         dirs = degeneracy.directions(result.H, result.T_world_camera, base_pose[:2], result.inliers, lever,
                                      p.degenerate_information)
         if dirs.dof == 0:
@@ -485,23 +488,9 @@ class Localizer:
         return correction
 
 
-def _position_std(P: np.ndarray, lever_m: float) -> float:
-    """The largest x-y std of P plus what its heading std sweeps at `lever_m` (m)."""
-    return float(np.sqrt(np.max(np.linalg.eigvalsh(P[:2, :2]))) + lever_m * np.sqrt(max(float(P[2, 2]), 0.0)))
-
-
 def _constrained_innovation(measured: np.ndarray, predicted: np.ndarray, dirs: degeneracy.Directions
                             ) -> np.ndarray:
     """measured ⊖ predicted (x, y, yaw) along the registration's constrained directions only."""
     nu = np.array([measured[0] - predicted[0], measured[1] - predicted[1], wrap_angle(measured[2] - predicted[2])])
     U = dirs.vectors[:, dirs.constrained]
     return np.linalg.inv(dirs.scale) @ U @ U.T @ dirs.scale @ nu
-
-
-def _rms_lever(result: registration.Result, points_camera: np.ndarray, base_xy: np.ndarray) -> float:
-    """RMS horizontal distance (m) of the registered points from the base: a yaw dψ moves them about this
-    far per radian, so yaw in units of lever·dψ compares with x and y (the floor gives ~0.5 per inlier along
-    every such direction)."""
-    T = result.T_world_camera
-    xy = (points_camera @ T[:3, :3].T + T[:3, 3])[:, :2] - base_xy
-    return max(float(np.sqrt(np.mean(np.sum(xy**2, axis=1)))), 0.1)

@@ -35,7 +35,7 @@ from core.localization import degeneracy, gates, registration, scan, se2
 from core.localization.gates import Verdict
 from core.localization.keyframes import Keyframes
 from core.localization.odometry_prediction import predict_covariance
-from core.localization.pose_filter import measurement_information
+from core.localization.pose_filter import measurement_information, position_std
 from core.localization.pose_graph import PoseGraph
 from core.localization.reference import FLOOR_ID, Reference
 from core.params import LocalizationParams
@@ -126,23 +126,19 @@ class LoopClosure:
 
     # --- loop closures --------------------------------------------------------------------------------------
 
-    def close(self, frame: DepthFrame, base_pose: np.ndarray, chain: np.ndarray, P: np.ndarray,
+    def close(self, anchor: int, frame: DepthFrame, base_pose: np.ndarray, chain: np.ndarray, P: np.ndarray,
               source, live_ids: Collection[int], judge) -> Closure | None:
         """Register `frame` (posed by the current estimate; the base at `base_pose`) against the keyframes an earlier
-        visit kept around the nearest of them; None when there is none (the map's surfaces are then the reference).
-        `source`: the frame's thinned points; `judge(ref, target, source, T)`: the objects that disagree (None:
-        most of them)."""
+        visit kept around `anchor` (`anchor()`); None when too few of them are in view (the map's surfaces are then
+        the reference). `source`: the frame's thinned points; `judge(ref, target, source, T)`: the objects that
+        disagree (None: most of them)."""
         p = self.params
-        anchor = self.anchor(base_pose, frame.t)
-        if anchor is None:
-            return None
         ref, target, ref_ms = self._prepared(anchor, frame.t, live_ids, base_pose)
         trusted = ref.object_ids != FLOOR_ID
         if np.sum(scan.in_view(ref.points[trusted], frame, p.max_range_m)) < p.min_trusted_points:
             return None
         sigma_P = self._honest(self.keyframes.frames[anchor].node, chain)
-        sigma = (float(np.sqrt(np.max(np.linalg.eigvalsh(sigma_P[:2, :2]))))
-                 + p.max_range_m / 2 * math.sqrt(max(float(sigma_P[2, 2]), 0.0)))
+        sigma = position_std(sigma_P, p.max_range_m / 2)
         radius = float(np.clip(p.radius_sigmas * sigma + p.radius_margin_m, p.radius_min_m, p.loop_radius_max_m))
         T0 = frame.T_world_camera
         ms = 0.0
@@ -169,8 +165,7 @@ class LoopClosure:
             return replace(base, verdict=failure)
         pts = np.asarray(source.points())[:, :3]
         T = result.T_world_camera
-        xy = (pts @ T[:3, :3].T + T[:3, 3])[:, :2] - base_pose[:2]
-        lever = max(float(np.sqrt(np.mean(np.sum(xy**2, axis=1)))), 0.1)
+        lever = degeneracy.rms_lever(pts, T, base_pose[:2])
         dirs = degeneracy.directions(result.H, T, base_pose[:2], result.inliers, lever, p.degenerate_information)
         if dirs.dof == 0:
             return replace(base, verdict=Verdict.DEGENERATE)

@@ -9,6 +9,7 @@ and the correction is the world-frame motion Δ = (x̂ ⊕ δ) ∘ x̂⁻¹, app
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,6 +41,12 @@ def measurement_information(dirs: Directions, sigma_xy_m: float, sigma_yaw_rad: 
     base_var = (U[0] ** 2 + U[1] ** 2) * sigma_xy_m**2 + U[2] ** 2 * (lever * sigma_yaw_rad) ** 2
     inflation = np.maximum(1.0, inflate_below / dirs.values[dirs.constrained])
     return U.T @ dirs.scale, np.diag(base_var * inflation)
+
+
+def position_std(P: np.ndarray, lever_m: float) -> float:
+    """A position std (m) of the pose covariance P: the largest x-y std plus what the heading std sweeps at
+    `lever_m` (m)."""
+    return float(np.sqrt(np.max(np.linalg.eigvalsh(P[:2, :2]))) + lever_m * math.sqrt(max(float(P[2, 2]), 0.0)))
 
 
 class PoseFilter:
@@ -81,6 +88,5 @@ class PoseFilter:
         self.T_world_odom = se2.compose(delta, self.T_world_odom)
 
     def sigma_xy_m(self, lever_m: float) -> float:
-        """A position std for the correspondence radius: the largest x-y std plus what the heading std
-        sweeps at `lever_m`."""
-        return float(np.sqrt(np.max(np.linalg.eigvalsh(self.P[:2, :2]))) + lever_m * np.sqrt(self.P[2, 2]))
+        """A position std for the correspondence radius (`position_std` of P)."""
+        return position_std(self.P, lever_m)
