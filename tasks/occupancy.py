@@ -41,9 +41,18 @@ class OccupancyGrid:
         fine = _mark(pts[:, :2], origin, fine_m, (shape[0] * subcells, shape[1] * subcells))
         if not fine.any():
             return cls(origin, cell_m, np.zeros(shape, bool))
+        # only cells within reach of a point can be blocked: the transform runs on their block alone (the same
+        # distances: every point lies inside it, and the transform is exact)
+        reach = int(np.ceil(inflation_m / fine_m)) + 1
+        marked = np.argwhere(fine)
+        lo = np.maximum(0, (marked.min(axis=0) - reach) // subcells)
+        hi = np.minimum(shape, (marked.max(axis=0) + reach) // subcells + 1)
+        block = fine[lo[0] * subcells:hi[0] * subcells, lo[1] * subcells:hi[1] * subcells]
         middle = slice(subcells // 2, None, subcells)
-        centres = cast(np.ndarray, ndimage.distance_transform_edt(~fine))[middle, middle]
-        return cls(origin, cell_m, centres * fine_m <= inflation_m)
+        centres = cast(np.ndarray, ndimage.distance_transform_edt(~block))[middle, middle]
+        blocked = np.zeros(shape, bool)
+        blocked[lo[0]:hi[0], lo[1]:hi[1]] = centres * fine_m <= inflation_m
+        return cls(origin, cell_m, blocked)
 
     def cell(self, xy: np.ndarray) -> tuple[int, int]:
         i, j = np.floor((np.asarray(xy, float) - self.origin) / self.cell_m).astype(int)
@@ -57,11 +66,29 @@ class OccupancyGrid:
 
     def segment_free(self, a: np.ndarray, b: np.ndarray) -> bool:
         """True if every cell along the straight segment a→b is free."""
-        n = max(2, int(np.ceil(np.linalg.norm(np.asarray(b) - a) / (0.5 * self.cell_m))) + 1)
-        pts = np.linspace(a, b, n)
+        return bool(self.segments_free(a, np.asarray(b, float)[None])[0])
+
+    def segments_free(self, a: np.ndarray, ends: np.ndarray) -> np.ndarray:
+        """For each row of `ends` (E×2), whether every cell along the straight segment from `a` to it is free.
+
+        Each segment is sampled every half cell or closer, at the very points `np.linspace(a, end, n)` gives
+        (its formula repeated: `k·step + a`, or `(k / div)·delta + a` where a component of the step is 0, and
+        the end itself last), all segments in one batch."""
+        a = np.asarray(a, float)
+        ends = np.asarray(ends, float).reshape(-1, 2)
+        delta = ends - a
+        n = np.maximum(2, np.ceil(np.linalg.norm(delta, axis=1) / (0.5 * self.cell_m)).astype(int) + 1)
+        segment = np.repeat(np.arange(len(n)), n)
+        k = (np.arange(segment.size) - np.repeat(np.cumsum(n) - n, n)).astype(float)[:, None]
+        div = (n - 1).astype(float)[:, None]
+        step = delta / div
+        flat = np.any(step == 0, axis=1)[segment, None]
+        pts = np.where(flat, k / div[segment] * delta[segment], k * step[segment]) + a
+        pts[np.cumsum(n) - 1] = ends
         idx = np.floor((pts - self.origin) / self.cell_m).astype(int)
         idx = np.clip(idx, 0, np.array(self.blocked.shape) - 1)
-        return not self.blocked[idx[:, 0], idx[:, 1]].any()
+        hit = self.blocked[idx[:, 0], idx[:, 1]]
+        return ~np.logical_or.reduceat(hit, np.cumsum(n) - n)
 
     def signature(self) -> int:
         """Cheap fingerprint: changes when the blocked set changes."""

@@ -72,18 +72,24 @@ def test_a_goal_in_the_start_cell_is_still_the_path_end():
         np.testing.assert_allclose(path[-1], goal)
 
 
-def test_inflation_is_measured_from_the_points_to_within_a_sub_cell():
+@pytest.mark.parametrize("where", ["spread", "corner", "one point", "beyond the bounds"])
+def test_inflation_is_measured_from_the_points_to_within_a_sub_cell(where):
     """A cell is blocked exactly when its centre lies within `inflation_m` of a point (to half a sub-cell's
-    diagonal, 2.4 cm at 0.1 m cells), wherever in its cell the point sits."""
+    diagonal, 2.4 cm at 0.1 m cells), wherever in its cell the point sits, and wherever the points lie on the grid
+    (the transform runs on the block within reach of them)."""
     rng = np.random.default_rng(5)
-    points = np.c_[rng.uniform(-3.0, 3.0, (40, 2)), np.full(40, 0.3)]
+    xy = {"spread": rng.uniform(-3.0, 3.0, (40, 2)), "corner": rng.uniform([4.6, -5.0], [5.0, -4.7], (10, 2)),
+          "one point": np.array([[0.37, -1.21]]), "beyond the bounds": np.array([[5.3, 0.2], [-1.0, -5.4]])}[where]
+    points = np.c_[xy, np.full(len(xy), 0.3)]
     grid = OccupancyGrid.from_points(points, (-5, 5, -5, 5), 0.1, 0.8)
     i, j = np.meshgrid(np.arange(100), np.arange(100), indexing="ij")
     centres = grid.origin + (np.c_[i.ravel(), j.ravel()] + 0.5) * 0.1
     exact = np.min(np.linalg.norm(centres[:, None] - points[None, :, :2], axis=2), axis=1).reshape(100, 100)
+    inside = np.all((xy >= -5) & (xy < 5), axis=1).any()  # points outside the grid mark nothing
     tolerance = 0.1 / 3 * np.sqrt(2) / 2
-    assert np.all(grid.blocked[exact <= 0.8 - tolerance])
+    assert np.all(grid.blocked[exact <= 0.8 - tolerance]) or not inside
     assert not np.any(grid.blocked[exact > 0.8 + tolerance])
+    assert grid.blocked.any() == inside
 
 
 def test_the_shipped_aisle_leaves_a_path_round_all_four_sides():
@@ -127,3 +133,69 @@ def test_a_waypoint_without_a_path_is_named_by_its_own_number():
     grid = OccupancyGrid.from_points(surface_points(ring), (-6, 6, -6, 6), 0.1, 0.3)
     with pytest.raises(NoPathError, match=r"no path to waypoint 2 \(3.00, 0.00\)"):
         plan_path(grid, np.array([-2.0, 0.0]), [np.array([3.0, 0.0]), np.array([-3.0, 0.0])], first_waypoint=2)
+
+
+def _grid_graph_costs(blocked: np.ndarray, start: tuple[int, int]) -> np.ndarray:
+    """Shortest 8-connected path cost (no corner cutting) from `start` to every cell, by Dijkstra (scipy)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import dijkstra
+
+    nx, ny = blocked.shape
+    rows, cols, costs = [], [], []
+    for i in range(nx):
+        for j in range(ny):
+            if blocked[i, j]:
+                continue
+            for dx, dy in ((-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1)):
+                a, b = i + dx, j + dy
+                if not (0 <= a < nx and 0 <= b < ny) or blocked[a, b]:
+                    continue
+                if dx and dy and (blocked[i + dx, j] or blocked[i, j + dy]):
+                    continue
+                rows.append(i * ny + j)
+                cols.append(a * ny + b)
+                costs.append(np.hypot(dx, dy))
+    graph = coo_matrix((costs, (rows, cols)), shape=(nx * ny, nx * ny)).tocsr()
+    return dijkstra(graph, indices=start[0] * ny + start[1]).reshape(nx, ny)
+
+
+def test_astar_finds_a_shortest_path_on_the_grid():
+    """A* (with its flat-index search) returns a connected path of free cells whose length is the grid graph's
+    shortest, or refuses exactly when the goal is unreachable."""
+    from tasks.path_planner import astar
+
+    rng = np.random.default_rng(3)
+    for _ in range(30):
+        blocked = rng.random((rng.integers(5, 30), rng.integers(5, 30))) < rng.uniform(0.1, 0.4)
+        grid = OccupancyGrid(np.zeros(2), 0.1, blocked)
+        free = np.argwhere(~blocked)
+        start, goal = (tuple(int(v) for v in free[k]) for k in rng.choice(len(free), 2))
+        best = _grid_graph_costs(blocked, start)[goal]
+        if not np.isfinite(best):
+            with pytest.raises(NoPathError):
+                astar(grid, start, goal)
+            continue
+        path = np.array(astar(grid, start, goal))
+        steps = np.diff(path, axis=0)
+        assert tuple(path[0]) == start and tuple(path[-1]) == goal
+        assert not blocked[path[:, 0], path[:, 1]].any() and np.abs(steps).max(initial=0) <= 1
+        assert np.hypot(steps[:, 0], steps[:, 1]).sum() == pytest.approx(best)
+
+
+def test_segments_free_answers_as_each_segment_alone():
+    """The batched line-of-sight check gives, per end, the answer of sampling that one segment every half cell
+    (`np.linspace`): horizontal, vertical, zero-length and diagonal segments alike."""
+    rng = np.random.default_rng(4)
+    blocked = rng.random((60, 50)) < 0.03
+    grid = OccupancyGrid(np.array([-3.0, -2.5]), 0.1, blocked)
+    a = np.array([0.13, -0.41])
+    ends = np.vstack([rng.uniform([-3, -2.5], [3, 2.5], (200, 2)), [a[0], 2.0], [-2.0, a[1]], a])
+
+    def alone(b: np.ndarray) -> bool:
+        n = max(2, int(np.ceil(np.linalg.norm(b - a) / 0.05)) + 1)
+        idx = np.clip(np.floor((np.linspace(a, b, n) - grid.origin) / 0.1).astype(int), 0, np.array(blocked.shape) - 1)
+        return not blocked[idx[:, 0], idx[:, 1]].any()
+
+    expected = [alone(b) for b in ends]
+    assert grid.segments_free(a, ends).tolist() == expected
+    assert 0 < sum(expected) < len(expected)
