@@ -35,7 +35,7 @@ from core.localization.frozen_surfaces import FrozenSurfaces
 from core.localization.gates import Verdict
 from core.localization.health import LocalizationHealth
 from core.localization.loop_closure import LoopClosure
-from core.localization.pose_filter import PoseFilter, position_std
+from core.localization.pose_filter import PoseFilter, Update, position_std
 from core.localization.reference import FLOOR_ID, Reference, build
 from core.params import LocalizationParams
 from core.types import DepthFrame, LocalizationStatus, PoseEstimate, ReferenceSurface
@@ -310,29 +310,43 @@ class Localizer:
                           loop=True)
         if c.delta is None or c.P is None:  # no factor due: the filter alone, against the keyframes
             assert c.measured is not None and c.directions is not None
-            with self.lock:
-                update = self.filter.update(base_pose, c.measured, c.directions, p.sigma_xy_m, p.sigma_yaw_rad,
-                                            5.0 * p.degenerate_information)
-                if not gates.chi2_passes(update.nis, update.dof, p):
-                    # the keyframes held against an over-sure filter: P grows by an innovation under a jump's size
-                    innovation = _constrained_innovation(c.measured, base_pose, c.directions)
-                    jump = self._is_jump(innovation)
-                    if not jump:
-                        self.filter.P = self.filter.P + np.diag(innovation**2)
-                    return replace(base, verdict=Verdict.CHI2, nis=update.nis, jump=jump, innovation=innovation)
-                self.filter.P = update.P
-                apply_t = frame.t + p.processing_s
-                self.schedule(apply_t, update.delta)
-                self.status = LocalizationStatus.LOCALIZED
+            update, apply_t, innovation = self._fuse(frame.t, base_pose, c.measured, c.directions)
+            if apply_t is None:
+                # the keyframes held against an over-sure filter: P grows by an innovation under a jump's size
+                jump = self._is_jump(innovation)
+                if not jump:
+                    self._grow(innovation)
+                return replace(base, verdict=Verdict.CHI2, nis=update.nis, jump=jump, innovation=innovation)
             return replace(base, delta=update.delta, nis=update.nis, apply_t=apply_t,
                            pose=se2.compose(update.delta, base_pose))
         with self.lock:
             if position_std(c.P, p.max_range_m / 2) < self.filter.sigma_xy_m(p.max_range_m / 2):
                 self.filter.P = c.P  # surer after the closure; never less sure: P also grows the margin (health)
-            apply_t = frame.t + p.processing_s
-            self.schedule(apply_t, c.delta)
-            self.status = LocalizationStatus.LOCALIZED
+            apply_t = self._commit(frame.t, c.delta)
         return replace(base, delta=c.delta, apply_t=apply_t, pose=c.pose)
+
+    def _fuse(self, t: float, base_pose: np.ndarray, measured: np.ndarray, dirs: degeneracy.Directions
+              ) -> tuple[Update, float | None, np.ndarray]:
+        """The filter updated along `dirs` by the `measured` base pose and its correction scheduled (`_commit`);
+        when the χ² gate refuses it, nothing changes. The update, its apply time (None: refused) and the
+        innovation (x, y, yaw) in the constrained directions."""
+        p = self.params
+        with self.lock:
+            update = self.filter.update(base_pose, measured, dirs, p.sigma_xy_m, p.sigma_yaw_rad,
+                                        5.0 * p.degenerate_information)
+            innovation = _constrained_innovation(measured, base_pose, dirs)
+            if not gates.chi2_passes(update.nis, update.dof, p):
+                return update, None, innovation
+            self.filter.P = update.P
+            return update, self._commit(t, update.delta), innovation
+
+    def _commit(self, t: float, delta: np.ndarray) -> float:
+        """A correction of a frame at robot time `t` scheduled `processing_s` later, the estimate localized
+        from then; its apply time (call under `lock`)."""
+        apply_t = t + self.params.processing_s
+        self.schedule(apply_t, delta)
+        self.status = LocalizationStatus.LOCALIZED
+        return apply_t
 
     def _agreed_before(self, fit: dict[int, float], t: float) -> tuple[int, ...]:
         """The objects that fit a χ²-refused pose and fitted an accepted one within `agreed_recently_s`: the pose
@@ -367,18 +381,12 @@ class Localizer:
             return replace(base, verdict=Verdict.DEGENERATE)
         delta_3d = result.T_world_camera @ np.linalg.inv(frame.T_world_camera)
         measured = se2.compose(se2.from_matrix(delta_3d), base_pose)
-        with self.lock:
-            update = self.filter.update(base_pose, measured, dirs, p.sigma_xy_m, p.sigma_yaw_rad,
-                                        5.0 * p.degenerate_information)
-            if not gates.chi2_passes(update.nis, update.dof, p):
-                innovation = _constrained_innovation(measured, base_pose, dirs)
-                return replace(base, verdict=Verdict.CHI2, dof=update.dof, nis=update.nis,
-                               jump=self._is_jump(innovation), innovation=innovation)
-            self.filter.P = update.P
-            apply_t = frame.t + p.processing_s
-            self.schedule(apply_t, update.delta)
-            self.status = LocalizationStatus.LOCALIZED
-            if p.graph_follows_map:
+        update, apply_t, innovation = self._fuse(frame.t, base_pose, measured, dirs)
+        if apply_t is None:
+            return replace(base, verdict=Verdict.CHI2, dof=update.dof, nis=update.nis,
+                           jump=self._is_jump(innovation), innovation=innovation)
+        if p.graph_follows_map:
+            with self.lock:
                 self._T_chain = se2.compose(update.delta, self._T_chain)
         if dirs.degenerate:
             self.counts[DEGENERATE] += 1
