@@ -107,7 +107,9 @@ def reaction_figures(run: ReactionRun[Reaction]) -> dict[str, float]:
                "reaction_sim_ms_p50": percentile([r.sim_ms for r in run.reactions], 50),
                "reaction_sim_ms_p95": percentile([r.sim_ms for r in run.reactions], 95),
                "reaction_events": float(len(run.reactions)), "reaction_placements": float(run.placements),
-               "reaction_constrained": float(run.constrained), "reaction_rejected": float(len(run.rejected))}
+               "reaction_constrained": float(run.constrained), "reaction_rejected": float(len(run.rejected)),
+               "reaction_mapping_queue_ms_p50": percentile([r.mapping_queue_ms for r in run.reactions], 50),
+               "reaction_mapping_queue_ms_p95": percentile([r.mapping_queue_ms for r in run.reactions], 95)}
     for part in PARTS:
         values = [r.parts_ms[part] for r in run.reactions]
         figures |= {f"reaction_{part}_ms_p50": percentile(values, 50),

@@ -71,6 +71,9 @@ class Reaction:
     """Control steps between the first that held the box and the one whose plan's command reacted (0: itself)."""
     unseen_frames: int
     """Frames with the box in view integrated before the one that brought it into the EDF (0: the first did)."""
+    mapping_queue_ms: float = float("nan")
+    """Of `mapping`: the frame's stamp → the integration's start (I/O pickup and the mapping thread's queue); the
+    rest is the hand-over to the map process and the integration."""
 
     @property
     def processing_ms(self) -> float:
@@ -150,4 +153,5 @@ def analyse(stamps: StageStamps, placement: Placement, voxel_m: float, range_m: 
                for f in _seeing(i.frames, placement, range_m)]
     return Reaction(parts, (command.wall - placement.wall) * 1e3, (command.t - placement.t) * 1e3,
                     placement.v_before_mps, towards_mps(command, placement.towards), placement.h_m, frame.camera,
-                    sum(1 for s in controls if first.wall_wake < s.wall_wake <= source.wall_wake), len(earlier))
+                    sum(1 for s in controls if first.wall_wake < s.wall_wake <= source.wall_wake), len(earlier),
+                    (integration.wall_start - stamped) * 1e3)

@@ -5,7 +5,7 @@ each: control steps started more than one period late, how late (p99), the contr
 second, and the frames the map integrated per second of each camera (when it falls behind, the mapping loop
 integrates only the newest frame of each camera).
 
-    python -m bench.reaction_rates [--quick]
+    python -m bench.reaction_rates [--quick] [--settings b10_c10_map20,b30_c10_map30]
 
 Figures are named `<figure>_<setting>`, the setting `b<base camera Hz>_c<control Hz>` (the hand camera stays at
 10 Hz), with `_map<Hz>` where a control step also runs as soon as the map has taken a new frame, at most that many a
@@ -14,6 +14,7 @@ second (`HTMPCParams.control_on_new_map`, `control_max_rate_hz`; the settings wi
 
 from __future__ import annotations
 
+import argparse
 import logging
 import os
 from dataclasses import replace
@@ -34,7 +35,8 @@ EVENTS = {True: 10, False: 40}
 KEPT = ("reaction_ms_p50", "reaction_ms_p95", "reaction_ms_max", "processing_ms_p95", "reaction_events",
         "reaction_frame_wait_ms_p50", "reaction_mapping_ms_p95", "reaction_control_wait_ms_p50",
         "reaction_control_wait_ms_p95", "reaction_solve_ms_p95", "reaction_command_ms_p50",
-        "reaction_references_ms_p50")
+        "reaction_references_ms_p50", "reaction_references_ms_p95", "reaction_mapping_ms_p50",
+        "reaction_mapping_queue_ms_p50", "reaction_mapping_queue_ms_p95", "processing_ms_p50")
 
 
 def config(base_camera_hz: float, control_hz: float, triggered_hz: float = 0.0) -> RuntimeConfig:
@@ -53,11 +55,24 @@ def setting_figures(base_camera_hz: float, control_hz: float, triggered_hz: floa
     return figures | run.health
 
 
+def setting_name(base_hz: float, control_hz: float, triggered_hz: float) -> str:
+    """`b<base camera Hz>_c<control Hz>`, with `_map<Hz>` where a new map triggers control steps."""
+    return f"b{base_hz:.0f}_c{control_hz:.0f}" + (f"_map{triggered_hz:.0f}" if triggered_hz else "")
+
+
+def add_options(parser: argparse.ArgumentParser) -> None:
+    names = ", ".join(setting_name(*s) for s in SETTINGS)
+    parser.add_argument("--settings", default="", help=f"comma-separated settings to run (default all: {names})")
+
+
 def main(argv: list[str] | None = None) -> None:
-    args = bench_args(__doc__.splitlines()[0] if __doc__ else "", argv)
+    args = bench_args(__doc__.splitlines()[0] if __doc__ else "", argv, add_options)
+    chosen = [s for s in SETTINGS if not args.settings or setting_name(*s) in args.settings.split(",")]
+    if not chosen:
+        raise SystemExit(f"no setting named {args.settings!r}")
     figures: dict[str, float] = {"load_avg_before": os.getloadavg()[0]}
-    for base_hz, control_hz, triggered_hz in SETTINGS:
-        name = f"b{base_hz:.0f}_c{control_hz:.0f}" + (f"_map{triggered_hz:.0f}" if triggered_hz else "")
+    for base_hz, control_hz, triggered_hz in chosen:
+        name = setting_name(base_hz, control_hz, triggered_hz)
         log.info("setting %s", name)
         figures |= {f"{k}_{name}": v
                     for k, v in setting_figures(base_hz, control_hz, triggered_hz, EVENTS[args.quick]).items()}
