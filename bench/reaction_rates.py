@@ -1,11 +1,14 @@
 """What rates the two cores allow, measured: the reaction to a box in the robot's way (bench/reaction.py) with the
-base camera and the control loop at 10 Hz each and faster (base camera 30 Hz, control 20 Hz), each with and without
-a control step on every new map, one setting after the other in one run, beside how the live loops kept time at
+base camera and the control loop at 10 Hz each and faster (base camera 20 or 30 Hz, control 20 Hz), each with and
+without a control step on every new map, one setting after the other in one run, beside how the live loops kept time at
 each: control steps started more than one period late, how late (p99), the control step's time, the control steps a
 second, and the frames the map integrated per second of each camera (when it falls behind, the mapping loop
 integrates only the newest frame of each camera).
 
-    python -m bench.reaction_rates [--quick] [--settings b10_c10_map20,b30_c10_map30]
+    python -m bench.reaction_rates [--quick] [--settings b10_c10_map20,b30_c10_map30] [--burners 2]
+
+With `--burners N`, N processes that only burn CPU run beside every setting (`bench/bridge_driving.py`'s), and
+the figures end in `_burn<N>`.
 
 Figures are named `<figure>_<setting>`, the setting `b<base camera Hz>_c<control Hz>` (the hand camera stays at
 10 Hz), with `_map<Hz>` where a control step also runs as soon as the map has taken a new frame, at most that many a
@@ -20,6 +23,7 @@ import os
 from dataclasses import replace
 
 from app.runtime import RuntimeConfig
+from bench.bridge_driving import burning
 from bench.closed_loop import reaction_figures
 from bench.reaction import measure_reactions
 from bench.report import bench_args, write_result
@@ -27,8 +31,8 @@ from core.params import CameraParams, HTMPCParams, SimParams
 
 log = logging.getLogger(__name__)
 
-SETTINGS = ((10.0, 10.0, 0.0), (30.0, 10.0, 0.0), (30.0, 20.0, 0.0), (10.0, 10.0, 20.0), (30.0, 10.0, 20.0),
-            (30.0, 10.0, 30.0), (30.0, 20.0, 30.0))
+SETTINGS = ((10.0, 10.0, 0.0), (30.0, 10.0, 0.0), (30.0, 20.0, 0.0), (10.0, 10.0, 20.0), (20.0, 10.0, 20.0),
+            (30.0, 10.0, 20.0), (30.0, 10.0, 30.0), (30.0, 20.0, 30.0))
 """(base camera Hz, control Hz, the most control steps a second a new map may trigger: 0 for none,
 `HTMPCParams.control_on_new_map` and `control_max_rate_hz`)."""
 EVENTS = {True: 10, False: 40}
@@ -63,6 +67,7 @@ def setting_name(base_hz: float, control_hz: float, triggered_hz: float) -> str:
 def add_options(parser: argparse.ArgumentParser) -> None:
     names = ", ".join(setting_name(*s) for s in SETTINGS)
     parser.add_argument("--settings", default="", help=f"comma-separated settings to run (default all: {names})")
+    parser.add_argument("--burners", type=int, default=0, help="CPU burner processes beside the runs")
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -70,12 +75,14 @@ def main(argv: list[str] | None = None) -> None:
     chosen = [s for s in SETTINGS if not args.settings or setting_name(*s) in args.settings.split(",")]
     if not chosen:
         raise SystemExit(f"no setting named {args.settings!r}")
-    figures: dict[str, float] = {"load_avg_before": os.getloadavg()[0]}
-    for base_hz, control_hz, triggered_hz in chosen:
-        name = setting_name(base_hz, control_hz, triggered_hz)
-        log.info("setting %s", name)
-        figures |= {f"{k}_{name}": v
-                    for k, v in setting_figures(base_hz, control_hz, triggered_hz, EVENTS[args.quick]).items()}
+    figures: dict[str, float] = {"load_avg_before": os.getloadavg()[0], "burners": float(args.burners)}
+    suffix = f"_burn{args.burners}" if args.burners else ""
+    with burning(args.burners):
+        for base_hz, control_hz, triggered_hz in chosen:
+            name = setting_name(base_hz, control_hz, triggered_hz) + suffix
+            log.info("setting %s", name)
+            figures |= {f"{k}_{name}": v
+                        for k, v in setting_figures(base_hz, control_hz, triggered_hz, EVENTS[args.quick]).items()}
     figures["load_avg_after"] = os.getloadavg()[0]
     units = {k: "ms" if "_ms_" in k else "%" if "_pct_" in k else "Hz" if "_hz_" in k else "" for k in figures}
     write_result("reaction_rates", figures, units, quick=args.quick)
