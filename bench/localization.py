@@ -221,23 +221,29 @@ def correction_errors(result: dict) -> np.ndarray:
     return out
 
 
-def false_corrections_pct(result: dict) -> float:
-    """Accepted corrections whose corrected pose is > 5 cm or 1° from the truth at the frame's exposure (the issue's
-    figure: it also counts a correction that made a pose already that far off better, or no worse)."""
-    e = correction_errors(result)
+def false_corrections_pct(e: np.ndarray) -> float:
+    """Of a run's accepted corrections (`correction_errors`), those whose corrected pose is > 5 cm or 1° from the
+    truth at the frame's exposure (the issue's figure: it also counts a correction that made a pose already that far
+    off better, or no worse)."""
     if not len(e):
         return math.nan
     return 100.0 * float(np.mean((e[:, 1] > FALSE_M) | (e[:, 3] > FALSE_DEG)))
 
 
-def pulled_away_pct(result: dict) -> float:
-    """Accepted corrections that moved the pose farther from the truth by > `PULLED_M` in x-y or > `PULLED_DEG` in
-    heading: the false pulls (a moved box dragging the pose), apart from the drift a correction only failed to
-    remove."""
-    e = correction_errors(result)
+def pulled_away_pct(e: np.ndarray) -> float:
+    """Of a run's accepted corrections (`correction_errors`), those that moved the pose farther from the truth by
+    > `PULLED_M` in x-y or > `PULLED_DEG` in heading: the false pulls (a moved box dragging the pose), apart from the
+    drift a correction only failed to remove."""
     if not len(e):
         return math.nan
     return 100.0 * float(np.mean((e[:, 1] - e[:, 0] > PULLED_M) | (e[:, 3] - e[:, 2] > PULLED_DEG)))
+
+
+def correction_figures(runs: list[dict]) -> tuple[float, float]:
+    """`false_corrections_pct` and `pulled_away_pct`, each the mean over `runs` (each run's errors found once)."""
+    errors = [correction_errors(x) for x in runs]
+    return (float(np.nanmean([false_corrections_pct(e) for e in errors])),
+            float(np.nanmean([pulled_away_pct(e) for e in errors])))
 
 
 def registration_figures(result: dict) -> dict[str, float]:
@@ -315,15 +321,13 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     figures["wall_s_on"] = float(sum(x["wall_s"] for x in on))
     figures["wall_s_off"] = float(sum(x["wall_s"] for x in off))
     if not args.quick:
-        figures["false_corrections_pct_0_0"] = float(np.nanmean([false_corrections_pct(x) for x in on]))
-        figures["pulled_away_pct_0_0"] = float(np.nanmean([pulled_away_pct(x) for x in on]))
+        figures["false_corrections_pct_0_0"], figures["pulled_away_pct_0_0"] = correction_figures(on)
         figures["corrections_0_0"] = float(sum(accepted(x) for x in on))
         worst, worst_pulled = figures["false_corrections_pct_0_0"], figures["pulled_away_pct_0_0"]
         for (share, dist), runs in moved.items():
             key = f"false_corrections_pct_{int(share * 100)}_{int(round(dist * 100))}"
-            figures[key] = float(np.nanmean([false_corrections_pct(x) for x in runs]))
             pulled = key.replace("false_corrections_pct", "pulled_away_pct")
-            figures[pulled] = float(np.nanmean([pulled_away_pct(x) for x in runs]))
+            figures[key], figures[pulled] = correction_figures(runs)
             worst_pulled = max(worst_pulled, figures[pulled])
             figures[key.replace("false_corrections_pct", "corrections")] = float(sum(accepted(x) for x in runs))
             figures[key.replace("false_corrections_pct", "ate_rmse_m")] = ate_figures(

@@ -34,20 +34,20 @@ def test_errors_before_and_after_each_accepted_correction() -> None:
 
 def test_a_correction_towards_the_truth_is_no_pull_even_while_the_pose_stays_off() -> None:
     healing = _accepted(1.0, np.array([1.0, 0.12, 0.0]), np.array([1.0, 0.08, 0.0]))
-    result = _result([healing])
-    assert false_corrections_pct(result) == 100.0  # still 8 cm off: the figure counts it
-    assert pulled_away_pct(result) == 0.0
+    e = correction_errors(_result([healing]))
+    assert false_corrections_pct(e) == 100.0  # still 8 cm off: the figure counts it
+    assert pulled_away_pct(e) == 0.0
 
 
 def test_a_correction_that_drags_the_pose_away_is_a_pull() -> None:
     dragged = _accepted(4.0, np.array([4.0, 0.01, 0.0]), np.array([4.0, 0.04, 0.0]))
     turned = _accepted(5.0, np.array([5.0, 0.0, 0.0]), np.array([5.0, 0.0, math.radians(0.4)]))
     fine = _accepted(6.0, np.array([6.0, 0.005, 0.0]), np.array([6.0, 0.002, 0.0]))
-    result = _result([dragged, turned, fine])
-    assert math.isclose(pulled_away_pct(result), 100.0 * 2 / 3)
-    assert false_corrections_pct(result) == 0.0  # all within 5 cm and 1° after
+    e = correction_errors(_result([dragged, turned, fine]))
+    assert math.isclose(pulled_away_pct(e), 100.0 * 2 / 3)
+    assert false_corrections_pct(e) == 0.0  # all within 5 cm and 1° after
 
 
 def test_no_accepted_correction_gives_no_figure() -> None:
-    result = _result([Correction(t=1.0, verdict=Verdict.DEGENERATE)])
-    assert math.isnan(pulled_away_pct(result)) and math.isnan(false_corrections_pct(result))
+    e = correction_errors(_result([Correction(t=1.0, verdict=Verdict.DEGENERATE)]))
+    assert math.isnan(pulled_away_pct(e)) and math.isnan(false_corrections_pct(e))
