@@ -35,6 +35,7 @@ from core.localization.frozen_surfaces import FrozenSurfaces
 from core.localization.gates import Verdict
 from core.localization.health import LocalizationHealth
 from core.localization.loop_closure import LoopClosure
+from core.localization.measurement import Measurement, measure
 from core.localization.pose_filter import PoseFilter, Update, position_std
 from core.localization.reference import FLOOR_ID, Reference, build
 from core.params import LocalizationParams
@@ -371,16 +372,10 @@ class Localizer:
         p = self.params
         base = Correction(frame.t, Verdict.ACCEPTED, registration_ms=ms, reference_ms=ref_ms, disagreeing=disagreeing,
                           inlier_share=result.inliers / max(result.source_points, 1))
-        failure = gates.registration_verdict(result.converged, result.inliers, result.source_points, p)
-        if failure is not None:
-            return replace(base, verdict=failure)
-        lever = degeneracy.rms_lever(source_points, result.T_world_camera, base_pose[:2])
-        dirs = degeneracy.directions(result.H, result.T_world_camera, base_pose[:2], result.inliers, lever,
-                                     p.degenerate_information)
-        if dirs.dof == 0:
-            return replace(base, verdict=Verdict.DEGENERATE)
-        delta_3d = result.T_world_camera @ np.linalg.inv(frame.T_world_camera)
-        measured = se2.compose(se2.from_matrix(delta_3d), base_pose)
+        m = measure(result, frame, base_pose, source_points, p)
+        if not isinstance(m, Measurement):
+            return replace(base, verdict=m)
+        measured, dirs = m.pose, m.directions
         update, apply_t, innovation = self._fuse(frame.t, base_pose, measured, dirs)
         if apply_t is None:
             return replace(base, verdict=Verdict.CHI2, dof=update.dof, nis=update.nis,

@@ -34,6 +34,7 @@ from core.angles import wrap_angle
 from core.localization import degeneracy, gates, registration, scan, se2
 from core.localization.gates import Verdict
 from core.localization.keyframes import Keyframes
+from core.localization.measurement import Measurement, measure
 from core.localization.odometry_prediction import predict_covariance
 from core.localization.pose_filter import measurement_information, position_std
 from core.localization.pose_graph import PoseGraph
@@ -160,16 +161,10 @@ class LoopClosure:
             ms += result.ms
         base = Closure(Verdict.ACCEPTED, registration_ms=ms, reference_ms=ref_ms, disagreeing=tuple(disagreeing),
                        inlier_share=result.inliers / max(result.source_points, 1))
-        failure = gates.registration_verdict(result.converged, result.inliers, result.source_points, p)
-        if failure is not None:
-            return replace(base, verdict=failure)
-        pts = np.asarray(source.points())[:, :3]
-        T = result.T_world_camera
-        lever = degeneracy.rms_lever(pts, T, base_pose[:2])
-        dirs = degeneracy.directions(result.H, T, base_pose[:2], result.inliers, lever, p.degenerate_information)
-        if dirs.dof == 0:
-            return replace(base, verdict=Verdict.DEGENERATE)
-        measured = se2.compose(se2.from_matrix(T @ np.linalg.inv(frame.T_world_camera)), base_pose)
+        m = measure(result, frame, base_pose, np.asarray(source.points())[:, :3], p)
+        if not isinstance(m, Measurement):
+            return replace(base, verdict=m)
+        measured, dirs = m.pose, m.directions
         Hm, R = measurement_information(dirs, p.loop_sigma_m, p.loop_sigma_rad, 5.0 * p.degenerate_information)
         nu = np.array([measured[0] - base_pose[0], measured[1] - base_pose[1], wrap_angle(measured[2] - base_pose[2])])
         y = Hm @ nu
