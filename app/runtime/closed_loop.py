@@ -57,7 +57,7 @@ from app.target_check import recheck_anchored
 from core.errors import StudioError
 from core.htmpc.safety import brake_along, braking_plan
 from core.localization import LocalizationHealth, Localizer, se2
-from core.localization.localizer import Correction
+from core.localization.correction import Correction
 from core.localization.lost import HOLD, INTEGRATE
 from core.mapping.frame_exposure import camera_latency, frames_at_exposure
 from core.mapping.reference_surface import occupied_surface, trusted_surface

@@ -5,7 +5,8 @@ The estimate is T_world←odom (`Localizer.T_world_odom`): backends keep reporti
 the loop re-poses states, frames and commands with it. Neither the map nor the controller imports this package.
 """
 
+from core.localization.correction import Correction
 from core.localization.health import LocalizationHealth
-from core.localization.localizer import Correction, Localizer
+from core.localization.localizer import Localizer
 
 __all__ = ["Correction", "LocalizationHealth", "Localizer"]

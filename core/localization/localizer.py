@@ -25,12 +25,13 @@ import math
 import threading
 from collections import Counter, deque
 from collections.abc import Iterable
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 import numpy as np
 
 from core.angles import wrap_angle
 from core.localization import degeneracy, gates, health, lost, registration, scan, se2
+from core.localization.correction import Correction
 from core.localization.frozen_surfaces import FrozenSurfaces
 from core.localization.gates import Verdict
 from core.localization.health import LocalizationHealth
@@ -45,35 +46,6 @@ DEGENERATE = "degenerate"
 """`Localizer.counts` key: accepted corrections with at least one direction masked."""
 OUTCOMES = {Verdict.ACCEPTED: "accepted", Verdict.DEGENERATE: "degenerate", Verdict.NO_REFERENCE: "no_reference"}
 """`Localizer.tally` key of a verdict; every other verdict is a gate's refusal, "rejected"."""
-
-
-@dataclass(frozen=True)
-class Correction:
-    """What one registration did: its verdict, the world-frame correction Δ (x, y, yaw; zero unless
-    accepted), the directions it constrained, its NIS, inlier share, times and the objects that disagreed."""
-
-    t: float
-    verdict: Verdict
-    delta: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    dof: int = 0
-    nis: float = math.nan
-    inlier_share: float = math.nan
-    registration_ms: float = math.nan
-    reference_ms: float = 0.0
-    disagreeing: tuple[int, ...] = ()
-    off: tuple[int, ...] = ()
-    """Inconsistent only: the objects found off their surfaces (most of those judged); unlike `disagreeing`, neither
-    left out of the reference nor handed to the map (the pose was in doubt, not they)."""
-    apply_t: float = math.nan
-    pose: np.ndarray | None = None
-    """The base's world pose at the frame's exposure after the correction (accepted ones only)."""
-    loop: bool = False
-    """Whether the frame was registered against an earlier visit's keyframes (a loop closure), not the map."""
-    jump: bool = True
-    """A χ² refusal: whether its innovation (along the constrained directions) is as large as a jump
-    (`lost_jump_m`, `lost_jump_rad`); a smaller one says the filter was too sure, not that the base slipped."""
-    innovation: np.ndarray | None = None
-    """A χ² refusal: measured ⊖ predicted (x, y, yaw) along the constrained directions."""
 
 
 class Localizer:
@@ -294,9 +266,10 @@ class Localizer:
         with self.lock:
             P = self.filter.P.copy()
         chain = se2.compose(self._T_chain, self._odom_at(frame.t, base_pose))
-        c = self.loops.close(anchor, frame, base_pose, chain, P, source, live, self._disagreeing)
-        if c is None:
+        closure = self.loops.close(anchor, frame, base_pose, chain, P, source, live, self._disagreeing)
+        if closure is None:
             return None
+        c = closure.correction
         if c.disagreeing:
             for i in c.disagreeing:
                 self._excluded[i] = frame.t + p.exclusion_s
@@ -306,25 +279,23 @@ class Localizer:
             self.counts[f"loop_{c.verdict.value}"] += 1
             return None
         self.counts["loop_accepted"] += 1
-        base = Correction(frame.t, Verdict.ACCEPTED, dof=c.dof, nis=c.nis, inlier_share=c.inlier_share,
-                          registration_ms=c.registration_ms, reference_ms=c.reference_ms, disagreeing=c.disagreeing,
-                          loop=True)
-        if c.delta is None or c.P is None:  # no factor due: the filter alone, against the keyframes
-            assert c.measured is not None and c.directions is not None
-            update, apply_t, innovation = self._fuse(frame.t, base_pose, c.measured, c.directions)
+        if closure.P is None:  # no factor due: the filter alone, against the keyframes
+            assert closure.measurement is not None
+            m = closure.measurement
+            update, apply_t, innovation = self._fuse(frame.t, base_pose, m.pose, m.directions)
             if apply_t is None:
                 # the keyframes held against an over-sure filter: P grows by an innovation under a jump's size
                 jump = self._is_jump(innovation)
                 if not jump:
                     self._grow(innovation)
-                return replace(base, verdict=Verdict.CHI2, nis=update.nis, jump=jump, innovation=innovation)
-            return replace(base, delta=update.delta, nis=update.nis, apply_t=apply_t,
+                return replace(c, verdict=Verdict.CHI2, nis=update.nis, jump=jump, innovation=innovation)
+            return replace(c, delta=update.delta, nis=update.nis, apply_t=apply_t,
                            pose=se2.compose(update.delta, base_pose))
         with self.lock:
-            if position_std(c.P, p.max_range_m / 2) < self.filter.sigma_xy_m(p.max_range_m / 2):
-                self.filter.P = c.P  # surer after the closure; never less sure: P also grows the margin (health)
+            if position_std(closure.P, p.max_range_m / 2) < self.filter.sigma_xy_m(p.max_range_m / 2):
+                self.filter.P = closure.P  # surer after the closure; never less sure: P also grows the margin (health)
             apply_t = self._commit(frame.t, c.delta)
-        return replace(base, delta=c.delta, apply_t=apply_t, pose=c.pose)
+        return replace(c, apply_t=apply_t)
 
     def _fuse(self, t: float, base_pose: np.ndarray, measured: np.ndarray, dirs: degeneracy.Directions
               ) -> tuple[Update, float | None, np.ndarray]:

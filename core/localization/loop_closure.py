@@ -24,14 +24,14 @@ leave every keyframe and are handed to the map as change evidence.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Collection
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from core.angles import wrap_angle
-from core.localization import degeneracy, gates, registration, scan, se2
+from core.localization import gates, registration, scan, se2
+from core.localization.correction import Correction
 from core.localization.gates import Verdict
 from core.localization.keyframes import Keyframes
 from core.localization.measurement import Measurement, measure
@@ -48,23 +48,14 @@ ODOMETRY, LOOP, ANCHOR = "odometry", "loop", "anchor"
 
 @dataclass(frozen=True)
 class Closure:
-    """One loop-closure attempt: its verdict, and when accepted the world-frame correction Δ, the node's optimised
-    pose, its covariance (P), NIS and dof; the objects that disagreed; times (ms)."""
+    """One loop-closure attempt: the correction it makes (its verdict; when a factor went into the graph, the
+    world-frame Δ and the node's optimised pose; NIS, dof, times, the objects that disagreed; `loop` set), the node's
+    covariance P in the graph (None: no factor), and, accepted, the measurement (for the filter when no factor is
+    due, `_factor_due`; with a factor, for tracing what the closure constrained)."""
 
-    verdict: Verdict
-    delta: np.ndarray | None = None
-    pose: np.ndarray | None = None
+    correction: Correction
     P: np.ndarray | None = None
-    dof: int = 0
-    nis: float = math.nan
-    inlier_share: float = math.nan
-    registration_ms: float = math.nan
-    reference_ms: float = 0.0
-    disagreeing: tuple[int, ...] = ()
-    measured: np.ndarray | None = None
-    directions: degeneracy.Directions | None = None
-    """Accepted: the measured base pose and its constrained directions (for the filter when no factor is due,
-    `_factor_due`; with a factor, for tracing what the closure constrained)."""
+    measurement: Measurement | None = None
 
 
 class LoopClosure:
@@ -151,7 +142,8 @@ class LoopClosure:
         ms += result.ms
         disagreeing = judge(ref, target, source, result.T_world_camera)
         if disagreeing is None:
-            return Closure(Verdict.INCONSISTENT, registration_ms=ms, reference_ms=ref_ms)
+            return Closure(Correction(frame.t, Verdict.INCONSISTENT, registration_ms=ms, reference_ms=ref_ms,
+                                      loop=True))
         if disagreeing:
             self.keyframes.forget(disagreeing)
             ref, target, more = self._prepared(anchor, frame.t, [i for i in live_ids if i not in disagreeing],
@@ -159,20 +151,22 @@ class LoopClosure:
             ref_ms += more
             result = registration.register(target, source, T0, min(radius, p.loop_fine_radius_m), p.max_iterations)
             ms += result.ms
-        base = Closure(Verdict.ACCEPTED, registration_ms=ms, reference_ms=ref_ms, disagreeing=tuple(disagreeing),
-                       inlier_share=result.inliers / max(result.source_points, 1))
+        base = Correction(frame.t, Verdict.ACCEPTED, registration_ms=ms, reference_ms=ref_ms,
+                          disagreeing=tuple(disagreeing), inlier_share=result.inliers / max(result.source_points, 1),
+                          loop=True)
         m = measure(result, frame, base_pose, np.asarray(source.points())[:, :3], p)
         if not isinstance(m, Measurement):
-            return replace(base, verdict=m)
+            return Closure(replace(base, verdict=m))
         measured, dirs = m.pose, m.directions
         Hm, R = measurement_information(dirs, p.loop_sigma_m, p.loop_sigma_rad, 5.0 * p.degenerate_information)
         nu = np.array([measured[0] - base_pose[0], measured[1] - base_pose[1], wrap_angle(measured[2] - base_pose[2])])
         y = Hm @ nu
         nis = float(y @ np.linalg.solve(Hm @ sigma_P @ Hm.T + R, y))
+        base = replace(base, dof=dirs.dof, nis=nis)
         if not gates.chi2_passes(nis, dirs.dof, p):
-            return replace(base, verdict=Verdict.CHI2, nis=nis, dof=dirs.dof)
+            return Closure(replace(base, verdict=Verdict.CHI2))
         if not self._factor_due(base_pose):
-            return replace(base, measured=measured, directions=dirs, dof=dirs.dof, nis=nis)
+            return Closure(base, measurement=m)
         self._last_factor = np.asarray(base_pose, float).copy()
         info_world = Hm.T @ np.linalg.solve(R, Hm)
         a = self.keyframes.frames[anchor].node
@@ -186,7 +180,7 @@ class LoopClosure:
         pose = self.graph.x[j].copy()
         P_new = self.graph.marginal(j)
         delta = se2.compose(pose, se2.inverse(base_pose))
-        return replace(base, delta=delta, pose=pose, P=P_new, dof=dirs.dof, nis=nis, measured=measured, directions=dirs)
+        return Closure(replace(base, delta=delta, pose=pose), P=P_new, measurement=m)
 
     def anchor(self, pose: np.ndarray, t: float) -> int | None:
         """The keyframe (index) of an earlier visit nearest to `pose` at robot time t, if one is in reach."""

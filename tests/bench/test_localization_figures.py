@@ -8,8 +8,8 @@ import numpy as np
 
 from bench.localization import correction_errors, false_corrections_pct, pulled_away_pct
 from core.localization import se2
+from core.localization.correction import Correction
 from core.localization.gates import Verdict
-from core.localization.localizer import Correction
 
 
 def _result(corrections: list[Correction]) -> dict:
