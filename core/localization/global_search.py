@@ -12,9 +12,11 @@ surfaces, `reference.py`):
      the share within `search_inlier_m`;
   4. the best result is accepted only if it is unique: its score at least `search_min_score`, and every result at
      a distinct pose (farther than `search_distinct_m` / `search_distinct_rad` from it) at least `search_margin`
-     below it. Along a uniform wall every guess fits alike: no unique answer, and the caller faults. Registrations
-     that run off the searched window are left out. Whether the estimate itself fits about as well as the best
-     guess (`SearchResult.estimate_fits`) is reported too: the caller's way out of a false alarm.
+     below it. Along a uniform wall every guess fits alike: no unique answer. Registrations that run off the
+     searched window are left out. Whether the estimate itself fits about as well as the best guess
+     (`SearchResult.estimate_fits`) is reported too: the caller's way out of a false alarm. So is a search whose
+     good fits all lie on one line through the estimate at its heading (`SearchResult.corridor`): the view cannot
+     tell a place along that line, and across it and in heading the estimate agrees with them.
 Deterministic (one thread, a fixed grid, stable sorts), so lockstep runs repeat.
 """
 
@@ -66,7 +68,12 @@ class SearchResult:
     reason: str = ""
     estimate_fits: bool = False
     """The estimate itself (the guess at zero offset) scores within `search_margin` of the best guess before
-    registration: whatever disagreed, the frame fits where the estimate puts it about as well as anywhere searched."""
+    registration, or the search is a `corridor` one: whatever disagreed, the frame fits where the estimate puts it
+    about as well as anywhere searched."""
+    corridor: bool = False
+    """Not unique, but every registered guess within `search_margin` of the best lies on one line with the estimate,
+    at its heading (`_on_one_line`): along a uniform wall the view constrains the pose across the aisle and in heading,
+    and there the estimate agrees; along the aisle nothing in view can tell, so neither can a re-anchoring."""
 
     @property
     def fits(self) -> bool:
@@ -137,10 +144,25 @@ def search(ref: Reference, target: registration.Target, source, T_world_camera: 
         return SearchResult(False, best, runner_up, len(grid), len(candidates), ms,
                             f"{LOW_FIT} {best.score:.2f} < {p.search_min_score:g}", fits)
     if runner_up is not None and runner_up.score > best.score - p.search_margin:
+        good = [c.pose for c in candidates if c.score > best.score - p.search_margin]
+        corridor = _on_one_line([*good, base_pose], p)
         return SearchResult(False, best, runner_up, len(grid), len(candidates), ms,
                             f"not unique: {best.score:.2f} and {runner_up.score:.2f} "
-                            f"{np.hypot(*(runner_up.pose[:2] - best.pose[:2])):.2f} m apart", fits)
+                            f"{np.hypot(*(runner_up.pose[:2] - best.pose[:2])):.2f} m apart", fits or corridor,
+                            corridor)
     return SearchResult(True, best, runner_up, len(grid), len(candidates), ms, "", fits)
+
+
+def _on_one_line(poses: list[np.ndarray], p: LocalizationParams) -> bool:
+    """Whether the poses (x, y, yaw) share a heading (within `search_distinct_rad` of the first) and lie on one line
+    (within `search_distinct_m` of their principal axis): fits along a corridor, told apart only along it."""
+    P = np.asarray(poses, float)
+    if np.max(np.abs(wrap_angle(P[:, 2] - P[0, 2]))) > p.search_distinct_rad:
+        return False
+    xy = P[:, :2] - P[:, :2].mean(axis=0)
+    axis = np.linalg.svd(xy, full_matrices=False)[2][0]
+    across = xy @ np.array([-axis[1], axis[0]])
+    return bool(np.max(np.abs(across)) <= p.search_distinct_m)
 
 
 def _motion(base_pose: np.ndarray, offset: np.ndarray) -> np.ndarray:

@@ -19,8 +19,9 @@ meanwhile, and the global search that ends it (docs/method.md, "State estimation
   search (`global_search.py`) instead of a registration, one at a time, its outcome due `search_processing_s` after
   the frame. A unique answer
   re-anchors T_world←odom (P restarts at `search_sigma_m` / `search_sigma_rad`) and, once applied, the run goes on.
-  First, though: if the estimate itself fits about as well as the best guess before registration
-  (`SearchResult.estimate_fits`: within `search_coarse_m` the refusals came from a drifted pose, not a jump), or if
+  First, though: if the estimate itself fits about as well as the best guess before registration, or the good
+  fits lie along a corridor through it (`SearchResult.estimate_fits`: the refusals came from a drifted pose, not a
+  jump), or if
   the frame fits the reference nowhere in the window (no registered guess scores `search_min_score`: the reference
   does not describe this view, and the frame cannot tell where the base is), the run goes on from the estimate.
   When the estimate fits, the objects the streak's inconsistent registrations found off their surfaces
