@@ -574,13 +574,6 @@ class LocalizationParams:
     map as change evidence."""
     min_object_points: int = 20
     """An object's disagreement is judged on at least this many of the frame's points near it."""
-    confirm_m: float = 0.08
-    occluder_m: float = 0.3
-    """…and an object whose frame points sit off its surface is still not off when the frame sees at least half of
-    its reference surface in place (`seen_in_place.py`): a reference point is confirmed when the frame's depth at its
-    pixel is within confirm_m (m: depth noise and the map's voxels) of its own, displaced when deeper or nearer by
-    less than occluder_m (m); nearer than that is an occluder. The points off it are then a surface the reference
-    does not hold yet (E4's lap 3: a face never mapped before made its neighbours read as off, and the run faulted)."""
     exclusion_s: float = 10.0
     """A disagreeing object stays out of the reference this long (s): the map meanwhile re-places or removes it."""
     agreed_recently_s: float = 1.0

@@ -39,7 +39,6 @@ from core.localization.loop_closure import LoopClosure
 from core.localization.measurement import Measurement, measure
 from core.localization.pose_filter import PoseFilter, Update, position_std
 from core.localization.reference import FLOOR_ID, Reference, build
-from core.localization.seen_in_place import seen_in_place
 from core.params import LocalizationParams
 from core.types import DepthFrame, LocalizationStatus, PoseEstimate, ReferenceSurface
 
@@ -196,8 +195,8 @@ class Localizer:
                                    p.radius_min_m, p.radius_max_m))
         result = registration.register(target, source, frame.T_world_camera, radius, p.max_iterations)
         ms = result.ms
-        disagreeing, judged, vouched = self._judge_objects(ref, target, source, frame, result.T_world_camera,
-                                                           radius <= p.radius_min_m + 1e-9)
+        disagreeing, judged, vouched = self._judge_objects(ref, target, source, frame.T_world_camera,
+                                                           result.T_world_camera, radius <= p.radius_min_m + 1e-9)
         if disagreeing and 2 * len(disagreeing) > judged and not vouched:  # most objects off: the pose is in doubt
             return self._record(Correction(frame.t, Verdict.INCONSISTENT, registration_ms=ms, reference_ms=ref_ms,
                                            off=disagreeing))
@@ -406,7 +405,7 @@ class Localizer:
         view, had P grown by its 0.3 m pull and the next frame took it: 22 cm off for the lap)."""
         return len(fit) >= 2 and all(d <= self.params.disagreement_m for d in fit.values())
 
-    def _judge_objects(self, ref: Reference, target: registration.Target, source, frame: DepthFrame,
+    def _judge_objects(self, ref: Reference, target: registration.Target, source, predicted: np.ndarray,
                        aligned: np.ndarray, confident: bool) -> tuple[tuple[int, ...], int, bool]:
         """The objects off their surfaces, how many were judged, and whether a still object vouched for the
         prediction. Objects are judged where the pose is best known: at the prediction when it is confident, else
@@ -415,22 +414,13 @@ class Localizer:
         still one was left out and the two moved ones taken). So an object that fits the prediction and not the
         aligned pose vouches for the prediction: then the objects off at the prediction are the moved ones."""
         dm = self.params.disagreement_m
-        predicted = frame.T_world_camera
         at_prediction = self._object_residuals(ref, target, source, predicted)
         if confident:
-            return self._off(ref, frame, predicted, at_prediction), len(at_prediction), False
+            return tuple(i for i, d in at_prediction.items() if d > dm), len(at_prediction), False
         at_aligned = self._object_residuals(ref, target, source, aligned)
         vouched = any(d <= dm and at_aligned.get(i, math.inf) > dm for i, d in at_prediction.items())
-        judged, T = (at_prediction, predicted) if vouched else (at_aligned, aligned)
-        return self._off(ref, frame, T, judged), len(judged), vouched
-
-    def _off(self, ref: Reference, frame: DepthFrame, T: np.ndarray, residual: dict[int, float]) -> tuple[int, ...]:
-        """The objects whose frame points sit off their surface (median over `disagreement_m`) at the camera pose T,
-        except those the frame sees in place (`seen_in_place.py`): then what sits off is a surface the reference does
-        not hold yet."""
-        p = self.params
-        return tuple(i for i, d in residual.items() if d > p.disagreement_m and not seen_in_place(
-            ref.points[ref.object_ids == i], frame, T, p.confirm_m, p.occluder_m, p.min_object_points))
+        judged = at_prediction if vouched else at_aligned
+        return tuple(i for i, d in judged.items() if d > dm), len(judged), vouched
 
     def set_aside(self, ids: Iterable[int], t: float) -> None:
         """Leave objects out of the reference until robot time t + `exclusion_s` (a registration's disagreeing objects;
