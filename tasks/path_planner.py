@@ -83,10 +83,8 @@ def shortcut(grid: OccupancyGrid, points: np.ndarray) -> np.ndarray:
     out = [points[0]]
     i = 0
     while i < len(points) - 1:
-        j = i + 1
-        if len(points) - 1 > i + 1:
-            free = grid.segments_free(points[i], points[i + 2:])
-            j = i + 2 + int(np.flatnonzero(free)[-1]) if free.any() else i + 1
+        free = grid.segments_free(points[i], points[i + 2:]) if i + 2 < len(points) else np.zeros(0, bool)
+        j = i + 2 + int(np.flatnonzero(free)[-1]) if free.any() else i + 1
         out.append(points[j])
         i = j
     return np.array(out)
