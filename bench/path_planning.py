@@ -75,9 +75,10 @@ def timed_ms(fn, *args, **kwargs) -> tuple[float, object]:
 
 
 def measure(quick: bool) -> dict[str, float]:
-    """Per case: the change grid, the planning grid, A* alone, and the whole re-plan (grid + `plan_path`)."""
+    """Per case: the change grid, the planning grid, `plan_path` on it (A*, shortcut, resampling), A* alone, and the
+    whole re-plan (grid + `plan_path`)."""
     p = SequencerParams()
-    change, grid_ms, astar_ms, plan_ms = [], [], [], []
+    change, grid_ms, astar_ms, path_ms, plan_ms = [], [], [], [], []
     refused = 0
     for case in tqdm(cases(quick, p), desc="re-plans", leave=False):
         ms, _ = timed_ms(OccupancyGrid.from_points, case.occupied, p.plan_bounds_m, p.grid_cell_m, p.inflation_m,
@@ -89,6 +90,7 @@ def measure(quick: bool) -> dict[str, float]:
         assert isinstance(grid, OccupancyGrid)
         grid_ms.append(ms)
         ms, path = timed_ms(plan_path, grid, case.start_xy, [case.goal_xy])
+        path_ms.append(ms)
         plan_ms.append((time.perf_counter() - t0) * 1e3)
         refused += isinstance(path, NoPathError)
         start, goal = grid.cell(case.start_xy), grid.cell(case.goal_xy)
@@ -96,6 +98,7 @@ def measure(quick: bool) -> dict[str, float]:
             astar_ms.append(timed_ms(astar, grid, start, goal)[0])
     return {"replan_ms_p50": percentile(plan_ms, 50), "replan_ms_p95": percentile(plan_ms, 95),
             "replan_ms_max": max(plan_ms), "plan_grid_ms_p50": percentile(grid_ms, 50),
+            "plan_path_ms_p50": percentile(path_ms, 50), "plan_path_ms_p95": percentile(path_ms, 95),
             "astar_ms_p50": percentile(astar_ms, 50), "astar_ms_p95": percentile(astar_ms, 95),
             "change_grid_ms_p50": percentile(change, 50), "replans": float(len(plan_ms)),
             "replans_without_path": float(refused)}
