@@ -574,14 +574,6 @@ class LocalizationParams:
     map as change evidence."""
     min_object_points: int = 20
     """An object's disagreement is judged on at least this many of the frame's points near it."""
-    confirm_m: float = 0.04
-    occluder_m: float = 0.3
-    """When most objects judged are off, the pose is in doubt (inconsistent) unless the frame sees most of them in
-    place (`seen_in_place.py`): an object's reference point is confirmed when the frame's depth at its pixel is within
-    confirm_m (m; as `disagreement_m`: a pose that far off must not look in place) of its own, displaced when deeper
-    or nearer by less than occluder_m (m), and nearer than that is an occluder. What sits off the objects seen in
-    place is a surface the reference does not hold yet (E4's lap 3: a face never mapped before made its neighbours
-    read as off and the run faulted): those stay in the reference, the others are left out like a minority."""
     exclusion_s: float = 10.0
     """A disagreeing object stays out of the reference this long (s): the map meanwhile re-places or removes it."""
     agreed_recently_s: float = 1.0

@@ -39,7 +39,6 @@ from core.localization.loop_closure import LoopClosure
 from core.localization.measurement import Measurement, measure
 from core.localization.pose_filter import PoseFilter, Update, position_std
 from core.localization.reference import FLOOR_ID, Reference, build
-from core.localization.seen_in_place import seen_in_place
 from core.params import LocalizationParams
 from core.types import DepthFrame, LocalizationStatus, PoseEstimate, ReferenceSurface
 
@@ -198,13 +197,9 @@ class Localizer:
         ms = result.ms
         disagreeing, judged, vouched = self._judge_objects(ref, target, source, frame.T_world_camera,
                                                            result.T_world_camera, radius <= p.radius_min_m + 1e-9)
-        if disagreeing and 2 * len(disagreeing) > judged and not vouched:  # most objects off: the pose is in doubt…
-            T_judged = result.T_world_camera if radius > p.radius_min_m + 1e-9 else frame.T_world_camera
-            placed = self._in_place(ref, frame, T_judged, disagreeing)
-            if 2 * len(placed) <= len(disagreeing):
-                return self._record(Correction(frame.t, Verdict.INCONSISTENT, registration_ms=ms,
-                                               reference_ms=ref_ms, off=disagreeing))
-            disagreeing = tuple(i for i in disagreeing if i not in placed)  # …unless the frame sees most in place
+        if disagreeing and 2 * len(disagreeing) > judged and not vouched:  # most objects off: the pose is in doubt
+            return self._record(Correction(frame.t, Verdict.INCONSISTENT, registration_ms=ms, reference_ms=ref_ms,
+                                           off=disagreeing))
         if disagreeing:
             surface, ref, target, result, more_ms = self._register_without(disagreeing, frame, base_pose, surface,
                                                                            source, radius)
@@ -426,13 +421,6 @@ class Localizer:
         vouched = any(d <= dm and at_aligned.get(i, math.inf) > dm for i, d in at_prediction.items())
         judged = at_prediction if vouched else at_aligned
         return tuple(i for i, d in judged.items() if d > dm), len(judged), vouched
-
-    def _in_place(self, ref: Reference, frame: DepthFrame, T: np.ndarray, off: tuple[int, ...]) -> tuple[int, ...]:
-        """The objects found off that the frame, at the camera pose T, sees in place (`seen_in_place.py`): what sits
-        off them is a surface the reference does not hold yet (a slip leaves them seen through or displaced)."""
-        p = self.params
-        return tuple(i for i in off if seen_in_place(ref.points[ref.object_ids == i], frame, T, p.confirm_m,
-                                                     p.occluder_m, p.min_object_points))
 
     def set_aside(self, ids: Iterable[int], t: float) -> None:
         """Leave objects out of the reference until robot time t + `exclusion_s` (a registration's disagreeing objects;
