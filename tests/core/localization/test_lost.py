@@ -271,6 +271,23 @@ def test_frames_wait_only_for_a_verdict_that_could_refuse_them():
     assert watch.fate(1.3, 1.31) == INTEGRATE
 
 
+def _lost_in(rects, error: np.ndarray, mapped=None, off: tuple[int, ...] = (1,)):
+    """A localizer made lost by a streak of inconsistent registrations that found `off` off their surfaces (as a moved
+    box or a mapped object off its surface makes), then fed frames of `rects` (reference: `mapped`, else `rects`) from
+    the origin, posed `error` off, until its first search; that search's result."""
+    loc = _localizer()
+    loc.status = LocalizationStatus.LOCALIZED
+    t = 1.0
+    while not loc.lost.observe(Verdict.INCONSISTENT, t, True, off=off):
+        t += PERIOD_S
+        assert t < 3.0
+    for _ in range(2):  # the first frame only tells that the base is at rest
+        t += PERIOD_S
+        frame, base = _drifted_frame(rects, error, t=t)
+        loc.correct(frame, base, surface_of(mapped or rects))
+    return loc, loc.lost.episodes[-1].searches[-1][1]
+
+
 def test_an_ambiguous_search_is_tried_again_without_the_objects_found_off_and_the_estimate_goes_on():
     """E4's aisle with localization on (docs/decisions.md): a box moved unseen, the map still holding alike boxes at
     old places on either side of it, made the searches find fits of 0.98-0.99 at distinct poses (the wall along y fits
@@ -278,21 +295,9 @@ def test_an_ambiguous_search_is_tried_again_without_the_objects_found_off_and_th
     estimate not fitting), and the run faulted. Without the objects the streak found off,
     the estimate fits: the run goes on from it, not re-anchored, and those objects are set aside."""
     seen = [FLOOR, Rect(0, 2.2, (-3.0, 0.0), (3.0, 1.5), 1), *box((1.2, 0.3), 0.6, 2)]
-    mapped = surface_of([FLOOR, Rect(0, 2.2, (-3.0, 0.0), (3.0, 1.5), 1), *box((1.2, -0.6), 0.6, 2),
-                         *box((1.2, 1.2), 0.6, 3)])
-    loc = _localizer()
-    loc.status = LocalizationStatus.LOCALIZED
-    t = 1.0
-    while not loc.lost.observe(Verdict.INCONSISTENT, t, True, off=(2, 3)):  # the streak the moved box made
-        t += PERIOD_S
-        assert t < 3.0
-    before = loc.world_from_odom
-    t += PERIOD_S
-    for _ in range(2):  # the first frame only tells that the base is at rest
-        frame, base = _drifted_frame(seen, np.zeros(3), t=t)
-        loc.correct(frame, base, mapped)
-        t += PERIOD_S
-    result = loc.lost.episodes[-1].searches[-1][1]
+    mapped = [FLOOR, Rect(0, 2.2, (-3.0, 0.0), (3.0, 1.5), 1), *box((1.2, -0.6), 0.6, 2), *box((1.2, 1.2), 0.6, 3)]
+    loc, result = _lost_in(seen, np.zeros(3), mapped, off=(2, 3))  # the streak the moved box made
+    before = loc.world_from_odom  # a search moves nothing before its outcome is applied
     assert result.estimate_fits, result
     assert loc.lost.failed is None and loc.lost.resume_t is not None
     loc.apply_due(loc.lost.resume_t)
@@ -308,22 +313,6 @@ CORRIDOR = [FLOOR, Rect(1, 1.0, (-3.0, 0.0), (8.0, 1.5), 1), Rect(1, -1.0, (-3.0
 MAPPED_AHEAD = [FLOOR, Rect(1, 1.0, (2.5, 0.0), (8.0, 1.5), 1), Rect(1, -1.0, (2.5, 0.0), (8.0, 1.5), 2)]
 """The corridor as a reference holds it: only from 2.5 m ahead (the walls' near part left out, as an object set aside
 leaves it). At the estimate the near points fit nothing, so guesses farther along fit better before registration."""
-
-
-def _lost_in(rects, error: np.ndarray, mapped=None):
-    """A localizer made lost by a streak of inconsistent registrations (as a mapped object off its surface makes), then
-    fed frames of `rects` (reference: `mapped`, else `rects`) from the origin, posed `error` off, until its first
-    search; that search's result."""
-    loc = _localizer()
-    loc.status = LocalizationStatus.LOCALIZED
-    t = 1.0
-    while not loc.lost.observe(Verdict.INCONSISTENT, t, True, off=(1,)):
-        t += PERIOD_S
-    for _ in range(2):  # the first frame only tells that the base is at rest
-        t += PERIOD_S
-        frame, base = _drifted_frame(rects, error, t=t)
-        loc.correct(frame, base, surface_of(mapped or rects))
-    return loc, loc.lost.episodes[-1].searches[-1][1]
 
 
 def test_in_a_corridor_fits_along_it_through_the_estimate_are_no_jump_and_the_estimate_goes_on():
