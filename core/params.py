@@ -377,8 +377,8 @@ class MappingParams:
     carve_after_misses: int = 3
     """A submap voxel seen through in this many carving checks since it was last hit is carved away."""
     carve_check_every: int = 3
-    """A matched object's surface is checked for seen-through voxels every this many observations (a
-    projection of the whole submap: carving is slow evidence, no need to pay for it every frame). The
+    """A matched object's surface is checked for seen-through voxels every this many of its observations by each
+    camera (a projection of the whole submap: carving is slow evidence, no need to pay for it every frame). The
     completion samples are checked then too; a sample seen through in `carve_after_misses` checks is free."""
 
     # --- voxel-level baseline (OctoMap-style log-odds, projective free-space carving) -------------

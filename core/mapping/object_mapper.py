@@ -19,7 +19,7 @@ Per depth frame:
 5. consistency: a matched object is updated by Delta = mean M_i at the observed points within the
    object grown by tau (its box, or its footprint's columns if it is not box-like, `footprint.py`:
    new surface revealed elsewhere is no change), its submap grows, and every third
-   observation its voxels seen through are counted, those seen through three times running carved
+   observation by each camera its voxels seen through are counted, those seen through three times running carved
    (and free space seen inside its box makes a box-like object hollow, i.e. mapped by its surface);
    an unmatched object whose expected-visible surface was seen through is a forced outlier
    (`visibility.py`, `consistency.py`); unseen or occluded objects keep their belief; an object with
@@ -187,7 +187,7 @@ class ObjectMapper:
             view = FrameView.of(frame, p)
             matched = {seen.obj.id for seen in matches}
             for seen in matches:
-                self._update_matched(seen, view)
+                self._update_matched(seen, view, frame.camera)
             for obj in live:
                 if obj.id not in matched:
                     self._update_unmatched(obj, view)
@@ -299,8 +299,9 @@ class ObjectMapper:
 
     # --- consistency ------------------------------------------------------------------------------
 
-    def _update_matched(self, seen: Observed, view: FrameView) -> None:
-        """POCD update by Delta, then fuse the points and carve what was seen through."""
+    def _update_matched(self, seen: Observed, view: FrameView, camera: str) -> None:
+        """POCD update by Delta, then fuse the points and carve what was seen through (checked every
+        `carve_check_every` observations by each camera)."""
         p = self.params
         obj = seen.obj
         within = obj.covers(seen.sample, p.tau_m)
@@ -312,7 +313,7 @@ class ObjectMapper:
             obj.updates += 1
         obj.observations += 1
         obj.saw_from(view.camera_position)
-        carve_check = obj.observations % p.carve_check_every == 0
+        carve_check = obj.observed_by(camera) % p.carve_check_every == 0
         if carve_check:
             obj.submap.mark_seen_through(view.classify(obj.world_points) == THROUGH)
             self._check_hollow(obj, view)

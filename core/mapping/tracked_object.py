@@ -92,6 +92,8 @@ class TrackedObject:
         self.submap = ObjectSubmap(voxel_m)
         self.posterior = prior
         self.observations = 1
+        self.views: dict[str, int] = {}
+        """Matched observations per camera: each camera's own count schedules its carving checks."""
         self.last_seen_t = float("nan")
         """Time (s) of the newest frame that observed the object (set by the mapper)."""
         self.first_seen_t = float("nan")
@@ -265,6 +267,13 @@ class TrackedObject:
         local = self.completion.samples(self.fit, -self.T_world_object[2, 3])
         R, t = self.T_world_object[:3, :3], self.T_world_object[:3, 3]
         return local @ R.T + t
+
+    def observed_by(self, camera: str) -> int:
+        """Count one matched observation by `camera`; returns that camera's count. Checks scheduled on the
+        shared count would lock onto one camera: a 20 Hz and a 10 Hz camera interleave with period 3, so every
+        third observation is always the same one's."""
+        self.views[camera] = self.views.get(camera, 0) + 1
+        return self.views[camera]
 
     def saw_from(self, camera_world: np.ndarray) -> None:
         """A camera at this world position observed the object (which sides were seen)."""

@@ -11,6 +11,7 @@ from core.params import SensorParams
 from core.robot.model import READY_Q
 from core.scene import Box
 from core.sim.ground_truth import box_signed_distance
+from core.types import Observation
 from tests.core.mapping.rendered_views import View
 
 NOISE = 0.005  # depth std = 0.005 · z² (2 cm at 2 m)
@@ -241,4 +242,33 @@ def test_a_box_taken_away_against_a_floor_beyond_the_range_is_removed(robot, par
     obj = next(iter(mapper.objects.values()))
     view.world.move_box("far", OUT_OF_SIGHT)
     _assert_removed_within(mapper, view, obj.id, frames=15)
+    view.close()
+
+
+@pytest.mark.parametrize("phase", [0, 1, 2])
+def test_a_box_taken_off_a_stack_is_carved_when_one_of_two_cameras_sees_through_at_twice_the_others_rate(
+        robot, params, phase):
+    """Carving is checked every `carve_check_every` observations by each camera: a 10 Hz hand camera (which sees
+    through the top box's place) interleaved with a 20 Hz base camera (which does not look up there) is the
+    sequence hand, base, base, ..., whose every third observation is the same camera's, whatever the phase."""
+    low, top = Box("low", (2.0, 0.0, 0.25), (0.5, 0.5, 0.5)), Box("top", (2.0, 0.0, 0.7), (0.4, 0.4, 0.4))
+    wall = Box("wall", (3.4, 0.0, 0.75), (0.2, 4.0, 1.5))
+    view = View(robot, (low, top, wall), cameras=("hand", "base"), noise_std_m=NOISE)
+    hand, base = view.cameras
+    mapper = ObjectMapper(robot, params)
+
+    def observe(camera) -> None:
+        view.world.data.time += 0.05
+        mapper.integrate(Observation(state=view.world.state(), frames=(camera.render(),), odometry=None))
+
+    for _ in range(20 + phase):
+        observe(hand)
+    obj = _object_near(mapper, low)
+    assert obj.extent[2] == pytest.approx(0.9, abs=0.05)
+    view.world.move_box("top", OUT_OF_SIGHT)
+    for _ in range(4 * params.carve_check_every):
+        for camera in (hand, base, base):
+            observe(camera)
+    assert obj.id in mapper.objects
+    assert obj.extent[2] == pytest.approx(0.5, abs=0.05)
     view.close()
