@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from app.runtime import Runtime, RuntimeConfig
+from core.angles import wrap_angle
 from core.params import LocalizationParams, SensorParams, SimParams
 from tasks import BasePose, BaseSubtask, TaskSequence, Tolerance
 from tests.app.test_localization_loop import CORRIDOR
@@ -33,20 +34,23 @@ the half turn's keyframes, 14–19 s in, are not the earlier visit)."""
 
 @pytest.mark.slow
 def test_back_at_the_start_a_loop_closure_pulls_the_pose_back_along_what_its_keyframes_see():
-    """Measured (lockstep, deterministic): the lap now ends at the start at 15 s, before the first keyframes (2-5 s in)
-    are 20 s old, so the closures come from the base standing there. The first keyframes hold one trusted surface, the
+    """Measured (lockstep, deterministic): the lap ends at the start at 15 s, before the first keyframes (2-5 s in) are
+    20 s old, so the closures come from the base standing there. The first keyframes hold one trusted surface, the
     corridor's end box's face (the side boxes were not trusted yet): a closure onto them constrains the distance to it
-    (x) and hardly y or the heading. Before the first closure (22.3 s) the pose is 30.8 cm off, (-24.7, +18.4) cm and
-    -8.4 deg; at the end x is -7.1 cm off and the norm 14.4 cm (the lateral and heading error stay: nothing in that
-    view measures them). With a factor every 2 s while standing (the fourth round's rule) the norm ended at 22.7 cm:
-    the second factor from the same view moved the unconstrained direction (16.1 -> 23.1 cm)."""
+    (x) and hardly y. Before the first closure (22.3 s) the pose is 27.5 cm off, (-23.7, +14.0) cm and -7.2 deg;
+    the closure takes x to 0.1 cm and the heading to -4.0 deg, and the graph, turning the lap's chain by that 3 deg,
+    moves the base 6 cm further off in y (nothing in that view measures y): the norm ends at 19.7 cm. (Before the
+    carving checks were counted per camera, 83487df, the same run was 30.8 cm off before and 14.4 cm at the end,
+    y then moving 6 cm the other way; with a factor every 2 s while standing, the fourth round's rule, 22.7 cm.)
+    So the test holds what a closure onto that view must do: x pulled back, the heading not worse, the norm down."""
     config = RuntimeConfig(map_kind="object", seed=3, sim=replace(SimParams(), sensor=DRIFTY), localization=LOOPS)
     rt = Runtime(config, scene=CORRIDOR, sequence=LAP)
     rows: list[tuple[float, np.ndarray]] = []
 
     def track(r: Runtime) -> None:
-        truth = r.backend.true_state().q[:2]  # type: ignore[attr-defined]
-        rows.append((r.time, r.state.q[:2] - truth))
+        truth = r.backend.true_state().q[:3]  # type: ignore[attr-defined]
+        error = r.state.q[:3] - truth
+        rows.append((r.time, np.array([error[0], error[1], wrap_angle(float(error[2]))])))
 
     rt.run_lockstep(40.0, on_control=track, until_done=False)  # the lap takes ~15 s; then it stands at home
     loc = rt.closed_loop.localizer
@@ -54,7 +58,8 @@ def test_back_at_the_start_a_loop_closure_pulls_the_pose_back_along_what_its_key
     loops = [c for c in loc.corrections if c.loop and c.apply_t == c.apply_t]
     assert loops and loc.loops.graph.count("loop") >= 1, f"no loop closure accepted: {dict(loc.counts)}"
     t = np.array([r[0] for r in rows])
-    err = np.array([r[1] for r in rows])
+    err = np.array([r[1][:2] for r in rows])
+    heading = np.array([r[1][2] for r in rows])
     first = loops[0].apply_t
     before = err[t < first][-1]
     after = err[-1]
@@ -63,4 +68,5 @@ def test_back_at_the_start_a_loop_closure_pulls_the_pose_back_along_what_its_key
     premise = "the premise: the lap drifted, along x too; "
     assert np.linalg.norm(before) > 0.15 and abs(before[0]) > 0.15, premise + summary
     assert abs(after[0]) < 0.5 * abs(before[0]), "pulled back along what the keyframes constrain; " + summary
-    assert np.linalg.norm(after) < 0.6 * np.linalg.norm(before), "the norm comes down too; " + summary
+    assert np.linalg.norm(after) < 0.8 * np.linalg.norm(before), "the norm comes down too; " + summary
+    assert abs(heading[-1]) <= abs(heading[t < first][-1]), "the heading is not worse; " + summary
