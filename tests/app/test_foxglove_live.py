@@ -30,12 +30,25 @@ WANTED = ("/tf", "/scene/boxes", "/robot/model")
 
 async def _first_messages(url: str, topics: tuple[str, ...], timeout_s: float) -> tuple[dict[str, object], float]:
     """Subscribe to `topics` as a Foxglove client does; the first decoded message of each, and the seconds from
-    the subscription until all had arrived."""
+    the subscription until all had arrived. `timeout_s` bounds the whole exchange, not each message: a server that
+    keeps sending other messages fails the test with what it did send, instead of holding it."""
     decoders = DecoderFactory()
+    deadline = time.monotonic() + timeout_s
+    channels: dict[int, dict] = {}
+    got: dict[str, object] = {}
+
+    async def receive(ws):
+        remaining = deadline - time.monotonic()
+        try:
+            return await asyncio.wait_for(ws.recv(), max(remaining, 0.0))
+        except TimeoutError:
+            advertised = sorted(c["topic"] for c in channels.values())
+            raise AssertionError(f"after {timeout_s} s: advertised {advertised}, received {sorted(got)}, "
+                                 f"wanted {list(topics)}") from None
+
     async with connect(url, subprotocols=[SUBPROTOCOL], max_size=None) as ws:  # type: ignore[list-item]
-        channels: dict[int, dict] = {}
         while not all(any(c["topic"] == t for c in channels.values()) for t in topics):
-            message = json.loads(await asyncio.wait_for(ws.recv(), timeout_s))
+            message = json.loads(await receive(ws))
             if message["op"] == "serverInfo":
                 assert message["capabilities"] == [], "data only: no publishing, parameters or services"
             if message["op"] == "advertise":
@@ -45,9 +58,8 @@ async def _first_messages(url: str, topics: tuple[str, ...], timeout_s: float) -
         await ws.send(json.dumps({"op": "subscribe", "subscriptions": [
             {"id": i, "channelId": c["id"]} for i, c in subscriptions.items()]}))
         subscribed = time.monotonic()
-        got: dict[str, object] = {}
         while len(got) < len(topics):
-            frame = await asyncio.wait_for(ws.recv(), timeout_s)
+            frame = await receive(ws)
             if isinstance(frame, str) or frame[0] != 0x01:  # 0x01: message data
                 continue
             subscription, _log_time = struct.unpack_from("<IQ", frame, 1)
