@@ -311,9 +311,8 @@ class ObjectMapper:
                                       p.delta_max_m)
             obj.posterior = consistency.cap(post, p.beta_cap)
             obj.updates += 1
-        obj.observations += 1
-        obj.saw_from(view.camera_position)
         carve_check = obj.observed_by(camera) % p.carve_check_every == 0
+        obj.saw_from(view.camera_position)
         if carve_check:
             obj.submap.mark_seen_through(view.classify(obj.world_points) == THROUGH)
             self._check_hollow(obj, view)

@@ -269,9 +269,10 @@ class TrackedObject:
         return local @ R.T + t
 
     def observed_by(self, camera: str) -> int:
-        """Count one matched observation by `camera`; returns that camera's count. Checks scheduled on the
-        shared count would lock onto one camera: a 20 Hz and a 10 Hz camera interleave with period 3, so every
-        third observation is always the same one's."""
+        """Count one matched observation by `camera` (in `observations` and in that camera's own count); returns
+        the camera's count. Checks scheduled on the shared count would lock onto one camera: a 20 Hz and a 10 Hz
+        camera interleave with period 3, so every third observation is always the same one's."""
+        self.observations += 1
         self.views[camera] = self.views.get(camera, 0) + 1
         return self.views[camera]
 

@@ -32,11 +32,12 @@ class View:
     def frame_set(self) -> tuple[DepthFrame, ...]:
         return tuple(c.render() for c in self.cameras)
 
-    def observe(self, dt: float = 0.1) -> Observation:
-        """Render every camera now, then advance the frame clock by dt (the sim does not step)."""
+    def observe(self, dt: float = 0.1, camera: DepthCamera | None = None) -> Observation:
+        """Render every camera (or only `camera`) now, then advance the frame clock by dt (the sim does not step)."""
         self.world.data.time += dt
         self.frames += 1
-        return Observation(state=self.world.state(), frames=self.frame_set(), odometry=None)
+        frames = self.frame_set() if camera is None else (camera.render(),)
+        return Observation(state=self.world.state(), frames=frames, odometry=None)
 
     def close(self) -> None:
         for c in self.cameras:

@@ -11,7 +11,6 @@ from core.params import SensorParams
 from core.robot.model import READY_Q
 from core.scene import Box
 from core.sim.ground_truth import box_signed_distance
-from core.types import Observation
 from tests.core.mapping.rendered_views import View
 
 NOISE = 0.005  # depth std = 0.005 · z² (2 cm at 2 m)
@@ -257,18 +256,14 @@ def test_a_box_taken_off_a_stack_is_carved_when_one_of_two_cameras_sees_through_
     hand, base = view.cameras
     mapper = ObjectMapper(robot, params)
 
-    def observe(camera) -> None:
-        view.world.data.time += 0.05
-        mapper.integrate(Observation(state=view.world.state(), frames=(camera.render(),), odometry=None))
-
     for _ in range(20 + phase):
-        observe(hand)
+        mapper.integrate(view.observe(0.05, hand))
     obj = _object_near(mapper, low)
     assert obj.extent[2] == pytest.approx(0.9, abs=0.05)
     view.world.move_box("top", OUT_OF_SIGHT)
     for _ in range(4 * params.carve_check_every):
         for camera in (hand, base, base):
-            observe(camera)
+            mapper.integrate(view.observe(0.05, camera))
     assert obj.id in mapper.objects
     assert obj.extent[2] == pytest.approx(0.5, abs=0.05)
     view.close()
