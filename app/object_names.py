@@ -215,7 +215,20 @@ class ObjectNames:
             size = matched_size(declared, extent) if declared is not None else b.measured
             views.append(ObjectView(oid, name, o.position.copy(), b.yaw, extent, o.consistency,
                                     sides_seen=b.sides_seen, size=None if np.isnan(size[:2]).all() else size))
-        return MapObjects(t, tuple(views), unresolved)
+        return MapObjects(t, tuple(views), unresolved, self._last_known(unresolved, names))
+
+    def _last_known(self, unresolved: Iterable[str], names: Mapping[str, NamedObject]) -> dict[str, np.ndarray]:
+        """Where each unresolved name's object was last mapped, else where the sequence declared it (none for a
+        name known only from the simulated scene: the robot is not told where a box it has not seen is)."""
+        out = {}
+        for name in unresolved:
+            b = self._bindings.get(name)
+            declared = names[name].position
+            if b is not None and b.position is not None:
+                out[name] = np.asarray(b.position, float).copy()
+            elif declared is not None:
+                out[name] = np.asarray(declared, float).copy()
+        return out
 
     def _update(self, name: str, declared: NamedObject, live: dict[str, SeenObject], t: float,
                 truth: Mapping[str, np.ndarray]) -> str:

@@ -500,6 +500,11 @@ class SequencerParams:
     longer than that size by more than this along a horizontal axis: the map has fused the box's old and new
     places after a move (seen: 1.02 m for a 0.6 m box pushed 0.5 m). 2 × a pick's 3 cm tolerance held a lap-1
     pick 0.7 cm from the true box on a 0.67 m box (bench)."""
+    anchor_base_settle_s: float = 5.0
+    """A base subtask held this long (s) at its goal on an unsettled object completes on the map's box as it is: from
+    the goal no camera may see a moved box's old place, which then stays fused (the anchored-picks bench: 4 of 10
+    runs stood 35 s at the approach until its timeout). A hand target keeps waiting: its camera sees the box from
+    above."""
     anchor_overlap_margin_m: float = 0.15
     """... or to one that stands where the lost object stood: the two footprints, at the box's known size, overlap
     by more than this (m) along every side (two boxes side by side touch, mapped within a few centimetres)."""

@@ -54,6 +54,8 @@ class MapObjects:
     t: float
     objects: tuple[ObjectView, ...] = ()
     unresolved: Mapping[str, str] = field(default_factory=dict)
+    last_known: Mapping[str, np.ndarray] = field(default_factory=dict)
+    """For a name in `unresolved`: where its object was last mapped, or where the sequence declared it (3, world)."""
 
     def named(self, name: str) -> ObjectView | None:
         return next((o for o in self.objects if o.name == name and o.status == "active"), None)

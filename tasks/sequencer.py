@@ -101,6 +101,17 @@ def _anchor_object(sub: BaseSubtask | EESubtask) -> str | None:
     return None if anchor is None else anchor.object
 
 
+def _facing(sub: BaseSubtask | EESubtask, state: RobotState, objects: MapObjects | None) -> float | None:
+    """The heading (rad) that faces the base toward where the anchored object of `sub` was last mapped (or
+    declared); None (hold the heading) when that is not known or is where the base stands."""
+    name = _anchor_object(sub)
+    where = None if name is None or objects is None else objects.last_known.get(name)
+    if where is None:
+        return None
+    d = np.asarray(where, float)[:2] - state.q[:2]
+    return float(math.atan2(d[1], d[0])) if float(np.hypot(*d)) > 0.05 else None
+
+
 def _angle_between(R_a: np.ndarray, R_b: np.ndarray) -> float:
     cos = (np.trace(R_a.T @ R_b) - 1.0) / 2.0
     return math.degrees(math.acos(float(np.clip(cos, -1.0, 1.0))))
@@ -175,6 +186,9 @@ class Sequencer:
                          for i, s in enumerate(self.sequence.subtasks)]
         self._started_t: float | None = None
         self._held_since: float | None = None
+        self._settle_told = False
+        self._unsettled_since: float | None = None
+        """When the active subtask was first held at its goal on an unsettled object (`anchor_base_settle_s`)."""
         self._switched = True
         self.path: np.ndarray | None = None
         self._s_progress = 0.0
@@ -285,7 +299,7 @@ class Sequencer:
         started_t = self._started_t if self._started_t is not None else self._begin(state, t)
         sub, why = resolve_subtask(authored, objects)
         if sub is None:
-            return self._wait(authored, state, t - started_t, why)
+            return self._wait(authored, state, t - started_t, why, objects)
         self._follow(authored, sub, state)
         pos_err, ori_err = self._errors(sub, state)
         elapsed = t - started_t
@@ -294,6 +308,7 @@ class Sequencer:
         if isinstance(sub, EESubtask) and self._ee_waypoint < len(sub.waypoints):
             within = False  # intermediate EE waypoints are passed, not dwelt at
         not_settled = settling(authored, objects, self.params.anchor_settle_m) if within else ""
+        not_settled = self._base_settled_enough(sub, not_settled, t)
         self._note_settling(not_settled)
         if not_settled:
             within = False  # the goal is followed, but not reached on a map still settling
@@ -325,6 +340,8 @@ class Sequencer:
         """Start the active subtask at time t (returned)."""
         self._started_t = t
         self._held_since = None
+        self._unsettled_since = None
+        self._settle_told = False
         self._switched = True
         self.path = None
         self._s_progress = 0.0
@@ -376,10 +393,12 @@ class Sequencer:
             log.warning("subtask %d %s: %s", self.index + 1, p.name, message)
         self.progress[self.index] = replace(p, blocked=blocked, message=message)
 
-    def _wait(self, sub: BaseSubtask | EESubtask, state: RobotState, elapsed: float, why: str) -> References | None:
+    def _wait(self, sub: BaseSubtask | EESubtask, state: RobotState, elapsed: float, why: str,
+              objects: MapObjects | None) -> References | None:
         """An anchored target that cannot be placed (its object not in the map, not seen yet, or ambiguous):
-        the base holds where it is and the hand goes to its ready pose, never toward where the object was;
-        past `timeout_s` the subtask fails with the reason."""
+        the base holds where it is, turning in place to face where the object was last mapped (or declared) so
+        that its cameras may find it again, and the hand goes to its ready pose, never toward where the object
+        was; past `timeout_s` the subtask fails with the reason."""
         self._held_since = None
         self._anchor_goal = None
         self.path = None
@@ -394,10 +413,27 @@ class Sequencer:
             log.info("subtask %d: %s", self.index + 1, message)
         self._set_progress(Outcome.ACTIVE, elapsed, 0.0, nan, nan, message)
         self.progress[self.index] = replace(self.progress[self.index], anchored_goal=None)
-        refs = navigation_references(state.q[None, :2].copy(), 0.0, float(state.q[2]), None, self.ready,
-                                     self.params, self.n_nodes, self.dt, ("base", "ee"), self._switched)
+        refs = navigation_references(state.q[None, :2].copy(), 0.0, float(state.q[2]), _facing(sub, state, objects),
+                                     self.ready, self.params, self.n_nodes, self.dt, ("base", "ee"), self._switched)
         self._switched = False
         return refs
+
+    def _base_settled_enough(self, sub: BaseSubtask | EESubtask, not_settled: str, t: float) -> str:
+        """`not_settled`, or '' for a base subtask held at its goal on an unsettled object for
+        `anchor_base_settle_s`: the stance then completes on the map's box as it is (the operator is told). From the
+        goal no camera may see a moved box's old place, which then stays fused for good; a hand target on the box
+        keeps waiting, its camera above the box sees the old place and the map settles."""
+        if not not_settled:
+            return ""
+        self._unsettled_since = t if self._unsettled_since is None else self._unsettled_since
+        if not isinstance(sub, BaseSubtask) or t - self._unsettled_since < self.params.anchor_base_settle_s - 1e-9:
+            return not_settled
+        if not self._settle_told:
+            self._settle_told = True
+            note = f"{not_settled} after {self.params.anchor_base_settle_s:g} s at the goal: the stance completes on it"
+            log.info("subtask %d: %s", self.index + 1, note)
+            self.notices.append(note)
+        return ""
 
     def _note_settling(self, why: str) -> None:
         """Show why an anchored goal within tolerance does not complete (its object's map has not settled), and

@@ -39,7 +39,9 @@ def test_a_scene_box_id_binds_where_the_box_is_and_follows_the_maps_id():
 def test_a_declared_name_binds_near_where_it_was_given_or_waits():
     names = ObjectNames()
     declared = {"shelf": NamedObject(position=(4.0, 1.0, 0.3))}
-    assert names.view(0.0, [seen("object_1", 2.0, 0.0)], declared).unresolved == {"shelf": "shelf not yet seen"}
+    waiting = names.view(0.0, [seen("object_1", 2.0, 0.0)], declared)
+    assert waiting.unresolved == {"shelf": "shelf not yet seen"}
+    np.testing.assert_allclose(waiting.last_known["shelf"], [4.0, 1.0, 0.3])  # where the sequence declared it
     view = names.view(0.1, [seen("object_1", 2.0, 0.0), seen("object_5", 4.2, 1.1)], declared)
     assert named(view, "shelf").id == "object_5"
 
@@ -54,6 +56,7 @@ def test_after_removal_a_name_rebinds_only_to_a_unique_new_candidate():
     wall = seen("object_7", 5.0, 0.0, extent=[3.0, 0.2, 1.0])
     view = names.view(6.0, [seen("object_2", 0.0, 3.0), wall], declared)
     assert view.unresolved == {"box_3": "box_3 not in the map"} and view.named("box_3") is None
+    np.testing.assert_allclose(view.last_known["box_3"], [2.5, 0.0, 0.3])  # where it was last mapped
     twins = [seen("object_2", 0.0, 3.0), seen("object_8", 3.5, 0.5), seen("object_9", 3.5, -1.0)]
     assert names.view(6.5, twins, declared).unresolved == {"box_3": "box_3: 2 candidates"}
     one = [seen("object_2", 0.0, 3.0), seen("object_8", 3.5, 0.5)]

@@ -6,11 +6,12 @@ import math
 import numpy as np
 import pytest
 
+from core.params import SequencerParams
 from core.robot.model import READY_Q
 from core.types import RobotState
 from core.yaml_validation import FileFormatError
 from tasks.anchors import MapObjects, ObjectView, anchor_box, anchor_position, face_point, resolve_pose, unsettled
-from tasks.schema import Anchor, BasePose, EEPose, TaskSequence
+from tasks.schema import Anchor, BasePose, EEPose, EESubtask, TaskSequence
 from tasks.sequence_file import parse_sequence, sequence_to_yaml
 from tasks.sequencer import Outcome, Sequencer
 
@@ -185,7 +186,8 @@ def test_a_box_mapped_longer_than_its_size_is_not_settled(robot):
     s.update(at_goal, np.zeros((0, 3)), 0.1, MapObjects(0.1, (fused,)))
     assert s.index == 0 and s.progress[0].position_error_m < 0.01
     assert s.progress[0].message == "box_3 mapped 1.02 m along its y, 0.60 m known: not settled: waiting"
-    late = Sequencer(robot, parse_sequence(GOOD))
+    never = SequencerParams(anchor_base_settle_s=math.inf)  # a base stance waiting as a hand target does
+    late = Sequencer(robot, parse_sequence(GOOD), never)
     late.update(at_goal, np.zeros((0, 3)), 0.0, MapObjects(0.0, (fused,)))
     late.update(at_goal, np.zeros((0, 3)), 999.0, MapObjects(999.0, (fused,)))  # past its timeout: failed, with why
     assert late.progress[0].outcome == Outcome.FAILED
@@ -203,3 +205,41 @@ def test_a_named_object_declares_its_size():
     with pytest.raises(FileFormatError) as err:
         parse_sequence(GOOD.replace("box_3: {}", "box_3: {size: [0.6, 0, 0.6]}"))
     assert ("objects.box_3.size.1", 2) in {(f, ln) for f, ln, _ in err.value.problems}
+
+
+def test_a_base_stance_on_an_unsettled_box_completes_after_a_while_a_hand_target_waits(robot):
+    """At the approach on a fused box (1.02 m for 0.6 m) whose old place no camera sees from there, the base
+    subtask waits `anchor_base_settle_s`, then completes on the map's box (the operator is told); the hand target
+    on the same box keeps waiting for the map to settle, up to its timeout."""
+    size = np.array([0.6, 0.6, 0.6])
+    fused = ObjectView("o", "box_3", np.array([2.5, 0.2, 0.3]), 0.0, np.array([0.6, 1.02, 0.6]), size=size)
+    s = Sequencer(robot, parse_sequence(GOOD))
+    wait = s.params.anchor_base_settle_s
+    at_goal = state_at(1.3, 0.2)  # 0.9 m before the front face of the fused box
+    for t in (0.0, 0.1, wait - 0.5):
+        s.update(at_goal, np.zeros((0, 3)), t, MapObjects(t, (fused,)))
+    assert s.index == 0 and s.progress[0].outcome == Outcome.ACTIVE
+    s.update(at_goal, np.zeros((0, 3)), wait + 0.2, MapObjects(wait + 0.2, (fused,)))
+    assert s.index == 1 and s.progress[0].outcome == Outcome.DONE
+    assert s.take_notices() == [f"box_3 mapped 1.02 m along its y, 0.60 m known: not settled after {wait:g} s at the"
+                                " goal: the stance completes on it"]
+    hand = s.active  # the pick above the same box: its wait is not cut short, however long
+    assert isinstance(hand, EESubtask)
+    why = "box_3 mapped 1.02 m along its y, 0.60 m known: not settled"
+    assert [s._base_settled_enough(hand, why, t) for t in (0.0, wait, 10 * wait)] == [why] * 3
+
+
+def test_a_waiting_base_turns_in_place_to_where_its_object_was_last_mapped(robot):
+    """box_3 removed from the map while the base stood at the approach, facing along x: the base holds its place
+    and turns to face where box_3 was last mapped, so that its cameras may find it again; with nowhere known it
+    holds its heading."""
+    s = Sequencer(robot, parse_sequence(GOOD))
+    s.update(state_at(1.3, 0.0), np.zeros((0, 3)), 0.0, MapObjects(0.0, (box([2.5, 0.0, 0.3]),)))
+    gone = MapObjects(0.5, (), {"box_3": "box_3 not in the map"}, {"box_3": np.array([1.3, 1.5, 0.3])})
+    refs = s.update(state_at(1.3, 0.0), np.zeros((0, 3)), 0.5, gone)
+    assert refs is not None and s.progress[s.index].message == "box_3 not in the map: waiting"
+    np.testing.assert_allclose(refs.base.xy, [[1.3, 0.0]] * len(refs.base.xy))
+    assert refs.base.yaw[-1] == pytest.approx(math.pi / 2)
+    nowhere = MapObjects(0.6, (), {"box_3": "box_3 not in the map"})
+    refs = s.update(state_at(1.3, 0.0, 0.3), np.zeros((0, 3)), 0.6, nowhere)
+    assert refs is not None and np.allclose(refs.base.yaw, 0.3)
