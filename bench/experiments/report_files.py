@@ -153,7 +153,8 @@ def write_markdown(out_dir: Path, name: str, title: str, sections: list[tuple[st
                     "that commit.")
     report_commit = git_commit()
     if report_commit != stamp.commit:
-        head.append(f"This report was rewritten from those trials (`--report-only`) on commit `{report_commit}`.")
+        head.append(f"This report was written on commit `{report_commit}`, from those trials (`--report-only`, or the "
+                    "tree changed while they ran: their code was imported at the start).")
     head.append("")
     body = [f"## {h}\n\n{b.strip()}\n" for h, b in sections]
     path = out_dir / "README.md"
