@@ -190,16 +190,17 @@ class ObjectNames:
         return {n: b.object_id for n, b in self._bindings.items() if b.object_id is not None}
 
     def view(self, t: float, objects: Iterable[SeenObject], names: Mapping[str, NamedObject],
-             truth: Mapping[str, np.ndarray] | None = None) -> MapObjects:
+             truth: Mapping[str, np.ndarray] | None = None, merged: Mapping[str, str] | None = None) -> MapObjects:
         """Bind, follow and re-bind every name in `names` (`truth`: scene box id → true centre, simulation
-        only, for names never bound) and return the objects as tasks/ sees them."""
+        only, for names never bound; `merged`: object id → the live object the map merged it into) and return the
+        objects as tasks/ sees them."""
         live = {o.id: o for o in objects}
         self._declared = names
         for oid in live:
             self._first_seen.setdefault(oid, t)
         unresolved: dict[str, str] = {}
         for name, declared in names.items():
-            why = self._update(name, declared, live, t, truth or {})
+            why = self._update(name, declared, live, t, truth or {}, merged or {})
             if why:
                 unresolved[name] = why
         by_object = {b.object_id: (n, b) for n, b in self._bindings.items() if b.object_id in live}
@@ -231,8 +232,10 @@ class ObjectNames:
         return out
 
     def _update(self, name: str, declared: NamedObject, live: dict[str, SeenObject], t: float,
-                truth: Mapping[str, np.ndarray]) -> str:
+                truth: Mapping[str, np.ndarray], merged: Mapping[str, str]) -> str:
         b = self._bindings.setdefault(name, _Binding())
+        if b.object_id is not None and b.object_id not in live:
+            self._follow_merge(name, b, live, merged)
         if b.object_id is not None and b.object_id in live:
             self._follow(b, live[b.object_id], t)
             return ""
@@ -254,6 +257,15 @@ class ObjectNames:
         self._bindings[name] = _Binding(best.id, best.yaw, best.extent.copy(), best.observations, t,
                                         sides_seen=best.sides_seen, position=best.position.copy())
         return ""
+
+    def _follow_merge(self, name: str, b: _Binding, live: dict[str, SeenObject], merged: Mapping[str, str]) -> None:
+        """The map merged the named object into another (the association found them one surface): the name goes
+        with it, unless another name holds that object."""
+        into = merged.get(b.object_id or "")
+        if into is None or into not in live or any(x.object_id == into for x in self._bindings.values()):
+            return
+        log.info("%s: %s merged into %s, the name goes with it", name, b.object_id, into)
+        b.object_id = into
 
     def _follow(self, b: _Binding, o: SeenObject, t: float) -> None:
         b.position = o.position.copy()
@@ -352,7 +364,11 @@ def map_objects(names: ObjectNames, world_map: WorldMap, sequence: TaskSequence,
     if not sequence.objects and not names.bound():
         return None
     truth = None if world is None else {b.id: np.asarray(b.position, float) for b in world.boxes()}
-    return names.view(t, _seen(world_map, world), sequence.objects, truth)
+    if isinstance(world_map, GroundTruthMap) and world is not None:
+        return names.view(t, _seen(world_map, world), sequence.objects, truth)
+    snapshot = world_map.snapshot()
+    merged = {f"object_{gone}": f"object_{keep}" for gone, keep in snapshot.merged_into.items()}
+    return names.view(t, seen_objects(snapshot), sequence.objects, truth, merged)
 
 
 def find_object(world_map: WorldMap, world: SimWorld | None, object_id: str) -> SeenObject | None:

@@ -139,11 +139,13 @@ class MappedObject:
 
 @dataclass(frozen=True)
 class ObjectMapSnapshot:
-    """The object map at time t: live objects and the ids removed so far."""
+    """The object map at time t: live objects, the ids removed so far, and of those the ones merged into another
+    object (`merged_into`: merged id → the live object it ended up in)."""
 
     t: float
     objects: tuple[MappedObject, ...]
     removed_ids: tuple[int, ...] = ()
+    merged_into: dict[int, int] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -100,6 +100,8 @@ class ObjectMapper:
         """Ids of the objects taken out of the map: changed (POCD) or merged into another object."""
         self.merged_ids: list[int] = []
         """The part of `removed_ids` merged into another object (a duplicate of part of its surface)."""
+        self.merged_into: dict[int, int] = {}
+        """Merged id → the object it was merged into (which may have been merged or removed since)."""
         self.timings_ms: dict[str, float] = dict.fromkeys(TIMING_KEYS, 0.0)
         self.frames_integrated = 0
         self.last_matched = 0
@@ -123,7 +125,22 @@ class ObjectMapper:
 
     def snapshot(self) -> ObjectMapSnapshot:
         objects = tuple(o.snapshot() for o in self.objects.values())
-        return ObjectMapSnapshot(t=self._t, objects=objects, removed_ids=tuple(self.removed_ids))
+        return ObjectMapSnapshot(t=self._t, objects=objects, removed_ids=tuple(self.removed_ids),
+                                 merged_into=self._merges_into_live())
+
+    def _merges_into_live(self) -> dict[int, int]:
+        """Each merged id → the live object its surface ended up in, following later merges; merges whose object has
+        been removed since are forgotten (removed objects never come back)."""
+        out = {}
+        for gone, keep in self.merged_into.items():
+            seen = {gone}
+            while keep in self.merged_into and keep not in seen:
+                seen.add(keep)
+                keep = self.merged_into[keep]
+            if keep in self.objects:
+                out[gone] = keep
+        self.merged_into = {g: k for g, k in self.merged_into.items() if g in out}
+        return out
 
     def local_edf(self, centre_xy: np.ndarray) -> LocalEDF:
         """Signed EDF (9a–9b) in the window around `centre_xy`: box-like objects are their solid boxes
@@ -179,6 +196,7 @@ class ObjectMapper:
             matches = found.observed(p.cost_sample_points, p.association_cap_m)
             self._forget(found.gone(), "merged into another object")
             self.merged_ids.extend(found.gone())
+            self.merged_into.update({gone: keep.id for gone, keep in found.keepers().items()})
             live = [o for o in live if o.id in self.objects]
         with _timed(timings, "registration"):
             for seen in matches:

@@ -63,6 +63,22 @@ def test_after_removal_a_name_rebinds_only_to_a_unique_new_candidate():
     assert named(names.view(7.0, one, declared), "box_3").id == "object_8"
 
 
+def test_a_name_goes_with_its_object_into_the_object_the_map_merged_it_into():
+    """box_c moved 0.4 m out of view; its new place was mapped as object_7 before the old object went, then the map
+    merged the old object into it (one surface), mapped 0.93 m long: too long to be a candidate, but the same
+    object, so the name follows; never onto an object another name holds."""
+    names = ObjectNames()
+    declared = {"box_c": NamedObject(position=(3.9, 1.6, 0.3)), "box_a": NamedObject(position=(2.2, 1.3, 0.3))}
+    names.view(0.0, [seen("object_2", 3.9, 1.6), seen("object_1", 2.2, 1.3)], declared)
+    fused = seen("object_7", 4.0, 1.38, extent=[0.6, 0.93, 0.6])
+    view = names.view(1.0, [fused, seen("object_1", 2.2, 1.3)], declared, merged={"object_2": "object_7"})
+    assert named(view, "box_c").id == "object_7" and "box_c" not in view.unresolved
+    other = ObjectNames()
+    other.view(0.0, [seen("object_2", 3.9, 1.6), seen("object_1", 2.2, 1.3)], declared)
+    view = other.view(1.0, [seen("object_1", 2.2, 1.3)], declared, merged={"object_2": "object_1"})
+    assert named(view, "box_a").id == "object_1" and view.unresolved == {"box_c": "box_c not in the map"}
+
+
 def test_a_box_found_elsewhere_before_the_old_one_goes_is_a_candidate():
     names = ObjectNames()
     declared = {"box_3": NamedObject(position=(2.5, 0.0, 0.3))}

@@ -49,6 +49,9 @@ def test_driving_round_an_aisle_corner_keeps_the_rows_and_an_edf_true_to_a_voxel
             errors.append(edf.distance(spheres) - truth.distance(spheres))
     errors = np.concatenate(errors)
     assert mapper.removed_ids == mapper.merged_ids  # nothing removed as changed: only duplicates merged
+    merges = mapper.snapshot().merged_into  # each merged object → the live object its surface went into
+    assert mapper.merged_ids and set(merges) == set(mapper.merged_ids)
+    assert set(merges.values()) <= set(mapper.objects)
     assert errors.max() <= 0.5 * params.edf_voxel_m  # never farther from an obstacle than it is
     assert errors.min() >= -2.5 * params.edf_voxel_m  # and conservative by at most two voxels or so
     # every mapped surface voxel lies on a box, and the walls around the corner are not one box
