@@ -565,8 +565,8 @@ class Sequencer:
         self._s_progress = 0.0
         self._plan_t, self._grid_sig = t, sig
         p = self.progress[self.index]
-        if p.blocked is not None and not no_path and not notes:
-            message = p.message  # a stall's message stays until the base moves on
+        if (p.blocked is not None or p.message.endswith("not settled: waiting")) and not no_path and not notes:
+            message = p.message  # a stall's or a settling wait's message stays until it is over
         if message != p.message or shift != p.goal_shift or no_path != p.no_path:
             if (shift is not None and shift != p.goal_shift) or (no_path and not p.no_path):
                 log.info("subtask %d: %s", self.index + 1, message)

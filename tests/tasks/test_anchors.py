@@ -219,6 +219,7 @@ def test_a_base_stance_on_an_unsettled_box_completes_after_a_while_a_hand_target
     for t in (0.0, 0.1, wait - 0.5):
         s.update(at_goal, np.zeros((0, 3)), t, MapObjects(t, (fused,)))
     assert s.index == 0 and s.progress[0].outcome == Outcome.ACTIVE
+    assert s.progress[0].message.endswith("not settled: waiting")  # kept through the path's re-planning
     s.update(at_goal, np.zeros((0, 3)), wait + 0.2, MapObjects(wait + 0.2, (fused,)))
     assert s.index == 1 and s.progress[0].outcome == Outcome.DONE
     assert s.take_notices() == [f"box_3 mapped 1.02 m along its y, 0.60 m known: not settled after {wait:g} s at the"
