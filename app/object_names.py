@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from app.footprint_overlap import overlap_depth
-from app.object_label import shown_id
+from app.object_label import MAP_ID_PREFIX, shown_id
 from app.runtime.ground_truth_map import GroundTruthMap
 from core.errors import StudioError
 from core.mapping.world_map import WorldMap
@@ -364,11 +364,8 @@ def map_objects(names: ObjectNames, world_map: WorldMap, sequence: TaskSequence,
     if not sequence.objects and not names.bound():
         return None
     truth = None if world is None else {b.id: np.asarray(b.position, float) for b in world.boxes()}
-    if isinstance(world_map, GroundTruthMap) and world is not None:
-        return names.view(t, _seen(world_map, world), sequence.objects, truth)
-    snapshot = world_map.snapshot()
-    merged = {f"object_{gone}": f"object_{keep}" for gone, keep in snapshot.merged_into.items()}
-    return names.view(t, seen_objects(snapshot), sequence.objects, truth, merged)
+    seen, merged = _seen_and_merged(world_map, world)
+    return names.view(t, seen, sequence.objects, truth, merged)
 
 
 def find_object(world_map: WorldMap, world: SimWorld | None, object_id: str) -> SeenObject | None:
@@ -378,7 +375,15 @@ def find_object(world_map: WorldMap, world: SimWorld | None, object_id: str) -> 
 
 def _seen(world_map: WorldMap, world: SimWorld | None) -> list[SeenObject]:
     """The map's live objects; with the ground-truth map, the simulated boxes themselves (ids = box ids)."""
+    return _seen_and_merged(world_map, world)[0]
+
+
+def _seen_and_merged(world_map: WorldMap, world: SimWorld | None) -> tuple[list[SeenObject], dict[str, str]]:
+    """`_seen`, and from the same snapshot each merged object's id → the live object it went into (none with the
+    ground-truth map)."""
     if isinstance(world_map, GroundTruthMap) and world is not None:
         return [SeenObject(b.id, np.asarray(b.position, float), float(b.yaw), np.asarray(b.size, float))
-                for b in world.boxes()]
-    return seen_objects(world_map.snapshot())
+                for b in world.boxes()], {}
+    snapshot = world_map.snapshot()
+    merged = {f"{MAP_ID_PREFIX}{gone}": f"{MAP_ID_PREFIX}{keep}" for gone, keep in snapshot.merged_into.items()}
+    return seen_objects(snapshot), merged

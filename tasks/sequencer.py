@@ -112,6 +112,11 @@ def _facing(sub: BaseSubtask | EESubtask, state: RobotState, objects: MapObjects
     return float(math.atan2(d[1], d[0])) if float(np.hypot(*d)) > 0.05 else None
 
 
+def _settling_message(message: str) -> bool:
+    """Whether a progress message is the settling wait's (`_note_settling`: `tasks.anchors.unsettled` + ': waiting')."""
+    return message.endswith("not settled: waiting")
+
+
 def _angle_between(R_a: np.ndarray, R_b: np.ndarray) -> float:
     cos = (np.trace(R_a.T @ R_b) - 1.0) / 2.0
     return math.degrees(math.acos(float(np.clip(cos, -1.0, 1.0))))
@@ -439,7 +444,7 @@ class Sequencer:
         """Show why an anchored goal within tolerance does not complete (its object's map has not settled), and
         take the reason back once it has (`why` '')."""
         current = self.progress[self.index].message
-        message = f"{why}: waiting" if why else ("" if current.endswith("not settled: waiting") else current)
+        message = f"{why}: waiting" if why else ("" if _settling_message(current) else current)
         if current != message:
             if why:
                 log.info("subtask %d: %s", self.index + 1, message)
@@ -565,7 +570,7 @@ class Sequencer:
         self._s_progress = 0.0
         self._plan_t, self._grid_sig = t, sig
         p = self.progress[self.index]
-        if (p.blocked is not None or p.message.endswith("not settled: waiting")) and not no_path and not notes:
+        if (p.blocked is not None or _settling_message(p.message)) and not no_path and not notes:
             message = p.message  # a stall's or a settling wait's message stays until it is over
         if message != p.message or shift != p.goal_shift or no_path != p.no_path:
             if (shift is not None and shift != p.goal_shift) or (no_path and not p.no_path):

@@ -129,8 +129,8 @@ class ObjectMapper:
                                  merged_into=self._merges_into_live())
 
     def _merges_into_live(self) -> dict[int, int]:
-        """Each merged id → the live object its surface ended up in, following later merges; merges whose object has
-        been removed since are forgotten (removed objects never come back)."""
+        """Each merged id → the live object its surface ended up in, following later merges (none whose object has
+        been removed since)."""
         out = {}
         for gone, keep in self.merged_into.items():
             seen = {gone}
@@ -139,7 +139,6 @@ class ObjectMapper:
                 keep = self.merged_into[keep]
             if keep in self.objects:
                 out[gone] = keep
-        self.merged_into = {g: k for g, k in self.merged_into.items() if g in out}
         return out
 
     def local_edf(self, centre_xy: np.ndarray) -> LocalEDF:
@@ -402,6 +401,8 @@ class ObjectMapper:
         changed = [o.id for o in self.objects.values()
                    if len(o.submap) == 0 or (o.posterior.consistency < p.theta_stat and o.updates > p.min_observations)]
         self._forget(changed, "changed")
+        if changed:  # merges into a removed object lead nowhere now (removed objects never come back)
+            self.merged_into = self._merges_into_live()
 
     def _forget(self, ids: Iterable[int], why: str) -> None:
         """Take objects out of the map; their ids are published as removed."""
