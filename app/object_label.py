@@ -14,6 +14,11 @@ def object_label(object_id: int, name: str | None = None) -> str:
     return f"#{object_id}" + (f" {name}" if name else "")
 
 
+def object_id_of(map_object: int) -> str:
+    """The id tasks/ and the API use for the map's object `map_object`: `object_4` for 4 (inverse of `map_id`)."""
+    return f"{MAP_ID_PREFIX}{map_object}"
+
+
 def map_id(object_id: str) -> int | None:
     """The map's id of an `object_<n>` id (None: a scene box id, as the ground-truth map names boxes)."""
     digits = object_id.removeprefix(MAP_ID_PREFIX)

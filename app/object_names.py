@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from app.footprint_overlap import overlap_depth
-from app.object_label import MAP_ID_PREFIX, shown_id
+from app.object_label import object_id_of, shown_id
 from app.runtime.ground_truth_map import GroundTruthMap
 from core.errors import StudioError
 from core.mapping.world_map import WorldMap
@@ -78,7 +78,7 @@ class SeenObject:
     def of(obj: MappedObject) -> SeenObject:
         R = obj.pose[:3, :3]
         sides = None if obj.sides_seen is None else np.asarray(obj.sides_seen, bool).copy()
-        return SeenObject(f"object_{obj.id}", obj.pose[:3, 3].copy(), float(math.atan2(R[1, 0], R[0, 0])),
+        return SeenObject(object_id_of(obj.id), obj.pose[:3, 3].copy(), float(math.atan2(R[1, 0], R[0, 0])),
                           np.asarray(obj.extent, float).copy(), obj.consistency, obj.observations, sides)
 
 
@@ -385,5 +385,5 @@ def _seen_and_merged(world_map: WorldMap, world: SimWorld | None) -> tuple[list[
         return [SeenObject(b.id, np.asarray(b.position, float), float(b.yaw), np.asarray(b.size, float))
                 for b in world.boxes()], {}
     snapshot = world_map.snapshot()
-    merged = {f"{MAP_ID_PREFIX}{gone}": f"{MAP_ID_PREFIX}{keep}" for gone, keep in snapshot.merged_into.items()}
+    merged = {object_id_of(gone): object_id_of(keep) for gone, keep in snapshot.merged_into.items()}
     return seen_objects(snapshot), merged

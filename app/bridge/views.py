@@ -24,7 +24,7 @@ from app.bridge.protocol import (
     finite_or_none,
 )
 from app.bridge.robot_link import RobotLink
-from app.object_label import shown_id
+from app.object_label import object_id_of, shown_id
 from app.runtime.snapshot import Snapshot
 from core.scene import Scene
 from core.types import Plan, PoseSource
@@ -118,7 +118,7 @@ def objects_out(snap: Snapshot) -> ObjectsOut:
     elif snap.object_map is not None:
         for o in snap.object_map.objects:
             R = o.pose[:3, :3]
-            found.append((f"object_{o.id}", o.pose[:3, 3], float(np.arctan2(R[1, 0], R[0, 0])), o.extent,
+            found.append((object_id_of(o.id), o.pose[:3, 3], float(np.arctan2(R[1, 0], R[0, 0])), o.extent,
                           o.consistency, o.status.value))
     objects = []
     for oid, position, yaw, extent, consistency, state in found:

@@ -18,7 +18,7 @@ import math
 import numpy as np
 import viser
 
-from app.object_label import MAP_ID_PREFIX, map_id, shown_id
+from app.object_label import MAP_ID_PREFIX, map_id, object_id_of, shown_id
 from app.runtime.snapshot import Snapshot
 from app.target_check import check_targets
 from app.ui.notify import notify_all
@@ -42,7 +42,7 @@ def mapped_objects(snap: Snapshot) -> dict[str, tuple[np.ndarray, np.ndarray, fl
         out = {}
         for o in snap.object_map.objects:
             R = o.pose[:3, :3]
-            out[f"object_{o.id}"] = (o.pose[:3, 3], np.asarray(o.extent), float(np.arctan2(R[1, 0], R[0, 0])))
+            out[object_id_of(o.id)] = (o.pose[:3, 3], np.asarray(o.extent), float(np.arctan2(R[1, 0], R[0, 0])))
         return out
     if snap.map_kind == "ground_truth":
         return {b.id: (np.array(b.position), np.array(b.size), b.yaw) for b in snap.boxes}
