@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import heapq
 import math
-from collections.abc import Callable
 
 import numpy as np
 
@@ -103,52 +102,33 @@ def resample(points: np.ndarray, spacing_m: float) -> np.ndarray:
     return np.stack([np.interp(samples, s, points[:, 0]), np.interp(samples, s, points[:, 1])], axis=1)
 
 
-def _reachable_goal(grid: OccupancyGrid, goal: np.ndarray, last: bool, snap_m: float, notes: list[str],
-                    fits: Callable[[np.ndarray], bool] | None = None) -> np.ndarray | None:
+def _reachable_goal(grid: OccupancyGrid, goal: np.ndarray, last: bool, snap_m: float,
+                    notes: list[str]) -> np.ndarray | None:
     """The goal itself if free; else an intermediate waypoint is skipped (None) and the final goal moves to
-    the nearest free cell within `snap_m` where the base `fits` (at the goal's heading; any free cell without
-    it); farther than that it raises."""
+    the nearest free cell within `snap_m`; farther than that it raises."""
     if not grid.blocked[grid.cell(goal)]:
         return goal
     where = f"({goal[0]:.2f}, {goal[1]:.2f})"
     if not last:
         notes.append(f"waypoint {where} is too close to an obstacle: skipped")
         return None
-    free = _fitting_cell(grid, goal, snap_m, fits)
-    if free is None:
+    free = grid.centre(_nearest_free(grid, grid.cell(goal)))
+    if np.linalg.norm(free - goal) > snap_m:
         raise NoPathError(f"no path to the goal {where}: it is too close to an obstacle for the base")
     notes.append(f"goal {where} is too close to an obstacle: going to ({free[0]:.2f}, {free[1]:.2f})")
     return free
 
 
-def _fitting_cell(grid: OccupancyGrid, goal: np.ndarray, snap_m: float,
-                  fits: Callable[[np.ndarray], bool] | None) -> np.ndarray | None:
-    """Centre of the free cell nearest to the goal, within `snap_m`, where the base fits; None if there is none."""
-    free = np.argwhere(~grid.blocked)
-    if len(free) == 0:
-        raise NoPathError("the whole map is blocked")
-    centres = grid.origin + (free + 0.5) * grid.cell_m
-    d = np.linalg.norm(centres - goal, axis=1)
-    for k in np.argsort(d, kind="stable"):
-        if d[k] > snap_m:
-            return None
-        if fits is None or fits(centres[k]):
-            return centres[k]
-    return None
-
-
 def plan_path(grid: OccupancyGrid, start_xy: np.ndarray, goals_xy: list[np.ndarray], spacing_m: float = 0.1,
-              snap_m: float = 0.5, notes: list[str] | None = None, first_waypoint: int = 1,
-              fits: Callable[[np.ndarray], bool] | None = None) -> np.ndarray:
-    """Smoothed path (P×2) from start through each goal in order (blocked goals: see `_reachable_goal`, `fits`
-    for the final one; what was changed is appended to `notes`). Messages number the goals from
-    `first_waypoint` (the subtask's own number of the first one, when earlier waypoints were passed)."""
+              snap_m: float = 0.5, notes: list[str] | None = None, first_waypoint: int = 1) -> np.ndarray:
+    """Smoothed path (P×2) from start through each goal in order (blocked goals: see `_reachable_goal`;
+    what was changed is appended to `notes`). Messages number the goals from `first_waypoint` (the
+    subtask's own number of the first one, when earlier waypoints were passed)."""
     notes = notes if notes is not None else []
     pieces = [np.asarray(start_xy, float)[None]]
     here = np.asarray(start_xy, float)
     for i, goal in enumerate(goals_xy):
-        last = i == len(goals_xy) - 1
-        goal = _reachable_goal(grid, np.asarray(goal, float), last, snap_m, notes, fits if last else None)
+        goal = _reachable_goal(grid, np.asarray(goal, float), i == len(goals_xy) - 1, snap_m, notes)
         if goal is None:
             continue
         g_cell = grid.cell(goal)

@@ -20,7 +20,6 @@ from core.params import HTMPCParams, SequencerParams
 from core.robot.model import RobotModel
 from core.types import References, RobotState
 from tasks.anchors import MapObjects, anchor_of, describe, is_anchored, resolve_subtask, settling
-from tasks.base_fit import BaseFit
 from tasks.occupancy import OccupancyGrid
 from tasks.path_planner import NoPathError, plan_path
 from tasks.ready_hand import ReadyHand
@@ -121,10 +120,6 @@ def _settling_message(message: str) -> bool:
 def _angle_between(R_a: np.ndarray, R_b: np.ndarray) -> float:
     cos = (np.trace(R_a.T @ R_b) - 1.0) / 2.0
     return math.degrees(math.acos(float(np.clip(cos, -1.0, 1.0))))
-
-
-GOAL_SNAP_M = 0.5
-"""A blocked final goal moves at most this far (m) to a cell where the base fits; farther, there is no path."""
 
 
 def _goal_shift(goal: np.ndarray, path_end: np.ndarray) -> GoalShift | None:
@@ -558,7 +553,7 @@ class Sequencer:
         no_path = False
         try:
             if occupied is not None:
-                path, notes = self._plan(occupied, state.q[:2], goals, sub.goal().yaw_rad)
+                path, notes = self._plan(occupied, state.q[:2], goals)
                 shift = _goal_shift(goals[-1], path[-1])  # a blocked final goal is moved to a free cell
             else:
                 path = np.array([state.q[:2], *goals])
@@ -584,26 +579,19 @@ class Sequencer:
                                                 blocked=None if no_path else p.blocked)
         return path
 
-    def _plan(self, occupied: np.ndarray, start_xy: np.ndarray, goals: list[np.ndarray], yaw: float | None = None
+    def _plan(self, occupied: np.ndarray, start_xy: np.ndarray, goals: list[np.ndarray]
               ) -> tuple[np.ndarray, list[str]]:
         """A path with the preferred clearance (`inflation_m`), or, where that leaves no path or skips a
-        waypoint, with the least the base needs (`inflation_min_m`); raises `NoPathError` when neither has one.
-        A blocked final goal with a heading `yaw` moves only to where the base's footprint fits (`BaseFit`)."""
+        waypoint, with the least the base needs (`inflation_min_m`); raises `NoPathError` when neither has one."""
         p = self.params
         best: tuple[np.ndarray, list[str], int] | None = None
         error: NoPathError | None = None
         preferred, least = self._inflations_m()
-        fits = None
-        if yaw is not None:
-            half = (self.robot.params.base_size_m[0] / 2, self.robot.params.base_size_m[1] / 2)
-            # what the controller keeps from the base's boxes: the least inflation less the half width
-            fits = BaseFit.near(occupied, goals[-1], GOAL_SNAP_M, yaw, half, least - half[1], p.obstacle_z_m)
         for inflation in dict.fromkeys((preferred, least)):
             grid = OccupancyGrid.from_points(occupied, p.plan_bounds_m, p.grid_cell_m, inflation, p.obstacle_z_m)
             notes: list[str] = []
             try:
-                path = plan_path(grid, start_xy, goals, snap_m=GOAL_SNAP_M, notes=notes,
-                                 first_waypoint=self._base_waypoint + 1, fits=fits)
+                path = plan_path(grid, start_xy, goals, notes=notes, first_waypoint=self._base_waypoint + 1)
             except NoPathError as err:
                 error = err
                 continue

@@ -3,7 +3,6 @@ import pytest
 
 from core.scene import Box, random_scene
 from core.sim.ground_truth import box_signed_distance
-from tasks.base_fit import BaseFit
 from tasks.occupancy import OccupancyGrid
 from tasks.path_planner import NoPathError, plan_path
 
@@ -200,36 +199,3 @@ def test_segments_free_answers_as_each_segment_alone():
     expected = [alone(b) for b in ends]
     assert grid.segments_free(a, ends).tolist() == expected
     assert 0 < sum(expected) < len(expected)
-
-
-def test_a_blocked_goal_moves_only_where_the_base_fits_at_its_heading():
-    """Facing a box (north) with another 1.6 m behind it, the stance 0.45 m from the one behind is blocked; the
-    nearest free cell (0.65 m from it on the narrow grid) leaves the base's back 0.17 m from it, under delta_safe.
-    The goal moves instead to where the footprint at its heading keeps the clearance."""
-    front, behind = Box("front", (0.0, 1.0, 0.3)), Box("behind", (0.0, -1.2, 0.3))
-    points = surface_points([front, behind])
-    grid = OccupancyGrid.from_points(points, (-5, 5, -5, 5), 0.1, 0.65)
-    goal = np.array([0.0, -0.45])  # 0.45 m from the face behind
-    fits = BaseFit.near(points, goal, 0.5, np.pi / 2, (0.48, 0.395), 0.255, (0.05, 2.0))
-    assert not fits(goal)
-    nearest = plan_path(grid, np.array([-3.0, 0.0]), [goal])[-1]
-    assert not fits(nearest)  # what the circle alone gives
-    notes = []
-    moved = plan_path(grid, np.array([-3.0, 0.0]), [goal], notes=notes, fits=fits)[-1]
-    assert fits(moved) and grid.is_free(moved) and np.linalg.norm(moved - goal) <= 0.5 and "going to" in notes[-1]
-    # the base's back keeps the clearance from the box behind, its front from the box it faces
-    assert fits.distance(moved) == pytest.approx(min(moved[1] - 0.48 - (-0.9), 0.7 - (moved[1] + 0.48)), abs=0.06)
-
-
-def test_a_blocked_goal_with_nowhere_to_fit_within_the_snap_has_no_path():
-    """Two boxes with a 1.34 m gap: the narrow grid leaves a free line in its middle, but the base facing north
-    (0.96 m long + 2 × 0.255 m) fits nowhere in it, nor within 0.5 m beside it: no path, said at once."""
-    front, behind = Box("front", (0.0, 0.97, 0.3)), Box("behind", (0.0, -0.97, 0.3))
-    points = surface_points([front, behind])
-    grid = OccupancyGrid.from_points(points, (-5, 5, -5, 5), 0.1, 0.65)
-    goal = np.array([0.0, 0.2])
-    fits = BaseFit.near(points, goal, 0.5, np.pi / 2, (0.48, 0.395), 0.255, (0.05, 2.0))
-    assert grid.blocked[grid.cell(goal)]
-    assert np.linalg.norm(plan_path(grid, np.array([-3.0, 0.0]), [goal])[-1] - goal) <= 0.5  # the circle's cell
-    with pytest.raises(NoPathError, match="too close to an obstacle for the base"):
-        plan_path(grid, np.array([-3.0, 0.0]), [goal], fits=fits)

@@ -8,7 +8,6 @@ import pytest
 from core.robot.model import READY_Q
 from core.types import References, RobotState
 from tasks import BasePose, BaseSubtask, EEPose, EESubtask, TaskSequence, Tolerance
-from tasks.base_fit import BaseFit
 from tasks.sequencer import Outcome, Sequencer
 
 
@@ -173,23 +172,6 @@ def test_a_moved_goal_completes_where_the_base_was_sent(robot):
     no_box = Sequencer(robot, seq)
     no_box.update(state_at(0.0, 0.0), np.zeros((0, 3)), 0.0)
     assert no_box.progress[0].goal_shift is None
-
-
-def test_a_goal_with_a_heading_moves_where_the_base_fits_facing_that_way(robot):
-    """A stance facing north at a box, 0.45 m from another box behind it (a gap of 1.6 m between their faces): only
-    the narrow grid has room, and its nearest free cell would leave the base's back 0.17 m from the box behind. The
-    goal moves to where the base's footprint, facing north, keeps the controller's clearance; that completes it."""
-    rng = np.random.default_rng(1)
-    boxes = np.vstack([rng.uniform([2.7, 0.7, 0.1], [3.3, 1.3, 0.6], (600, 3)),
-                       rng.uniform([2.7, -1.5, 0.1], [3.3, -0.9, 0.6], (600, 3))])
-    seq = TaskSequence(subtasks=[BaseSubtask(target=BasePose(x=3.0, y=-0.45, yaw_deg=90.0), timeout_s=30.0)])
-    s = Sequencer(robot, seq)
-    assert s.update(state_at(0.0, -0.1), boxes, 0.0) is not None
-    shift = s.progress[0].goal_shift
-    assert shift is not None and "to clear an obstacle" in s.progress[0].message
-    fits = BaseFit.near(boxes, np.array(shift.original), 1.0, math.pi / 2, (0.48, 0.395), 0.255, (0.05, 2.0))
-    assert fits(np.array(shift.driven)) and not fits(np.array([3.0, -0.25]))  # where the circle alone went
-    assert s.update(state_at(*shift.driven, math.pi / 2), boxes, 1.0) is None and s.finished
 
 
 def test_ee_target_in_the_base_frame(robot):
