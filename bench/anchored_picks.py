@@ -44,15 +44,16 @@ from pathlib import Path
 
 import numpy as np
 
+from app.footprint_overlap import overlap_depth
 from app.runtime import Runtime, RuntimeConfig
-from app.target_check import envelope_of
+from app.target_check import envelope_of, scene_obstacles
 from core.params import LocalizationParams
 from core.scene import load_scene
 from tasks.anchors import MapObjects, ObjectView, anchor_position, resolve_subtask
 from tasks.schema import Anchor, EESubtask, TaskSequence
 from tasks.sequence_file import EXAMPLES_DIR, load_sequence
 from tasks.sequencer import Outcome
-from tasks.validation import Obstacle, Severity, box_distance, check_sequence
+from tasks.validation import Obstacle, Severity, check_sequence
 
 EXAMPLE = EXAMPLES_DIR / "anchored_picks.yaml"
 RESULTS = Path(__file__).parent / "results"
@@ -116,8 +117,7 @@ class _Trial:
     def _moves(self, rt: Runtime, index: int) -> dict[str, tuple[float, float, float]]:
         """Seeded moves of the pick boxes for the lap starting at `index`, drawn again while the lap's targets
         break a target check on the true scene (the same draws for every variant: the robot plays no part)."""
-        boxes = {b.id: Obstacle(b.id, tuple(b.position), tuple(b.size), float(b.yaw))
-                 for b in rt.require_world().boxes()}
+        boxes = {o.id: o for o in scene_obstacles(rt)}
         names = sorted({a.object for a in self.anchors.values()})
         end = min([s for s in self.lap_starts if s > index] + [len(self.sequence.subtasks)])
         for _ in range(MOVE_DRAWS):
@@ -154,21 +154,13 @@ def _admissible(sequence: TaskSequence, boxes: dict[str, Obstacle], moved: list[
     """The moved boxes stand apart from the others and the lap's targets, placed on them, break no target check
     (without the path check: that depends on where this variant's robot stands)."""
     for name in moved:
-        corners = _corners(boxes[name])
-        for other in boxes.values():
-            if other.id != name and (box_distance(other, corners).min() < BOX_GAP_M
-                                     or box_distance(boxes[name], _corners(other)).min() < BOX_GAP_M):
-                return False
+        a = boxes[name]
+        if any(o.id != name and overlap_depth(np.asarray(a.position), a.yaw, np.asarray(a.size), np.asarray(o.position),
+                                              o.yaw, np.asarray(o.size)) > -BOX_GAP_M for o in boxes.values()):
+            return False
     findings = check_sequence(sequence, tuple(boxes.values()), envelope_of(rt), indices=lap,
                               anchors={name: boxes[name] for name in moved})
     return not any(f.severity == Severity.ERROR for f in findings)
-
-
-def _corners(box: Obstacle) -> np.ndarray:
-    """The four corners of a box's footprint (4×2)."""
-    c, s = math.cos(box.yaw), math.sin(box.yaw)
-    half = 0.5 * np.array([[1, 1], [1, -1], [-1, -1], [-1, 1]]) * np.asarray(box.size[:2])
-    return np.asarray(box.position[:2]) + half @ np.array([[c, s], [-s, c]])
 
 
 def run(sequence: TaskSequence, authored: TaskSequence, anchors: dict[int, Anchor], lap_starts: tuple[int, ...],

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from app.runtime import Runtime, RuntimeConfig
-from app.target_check import envelope_of
+from app.target_check import envelope_of, scene_obstacles
 from bench.anchored_picks import EXAMPLE, _Trial, laps_of, world_frame
 from core.scene import load_scene
 from tasks.schema import EESubtask
 from tasks.sequence_file import load_sequence
-from tasks.validation import Obstacle, Severity, check_sequence
+from tasks.validation import Severity, check_sequence
 
 
 def test_world_frame_twin_and_laps():
@@ -42,7 +42,7 @@ def test_moves_keep_each_lap_admissible():
             before = {n: rt.require_world().box(n).position for n in ("box_a", "box_c")}
             for name, position in trial._moves(rt, start).items():
                 rt.move_box(name, position)
-            boxes = {b.id: Obstacle(b.id, tuple(b.position), tuple(b.size), b.yaw) for b in rt.require_world().boxes()}
+            boxes = {o.id: o for o in scene_obstacles(rt)}
             for name, was in before.items():
                 assert 0.3 <= np.linalg.norm(np.subtract(boxes[name].position, was)) <= 0.5
             findings = check_sequence(laps, tuple(boxes.values()), envelope_of(rt), indices=range(start, end),
