@@ -6,6 +6,7 @@ import os
 import socket
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -43,7 +44,15 @@ def start_studio(*args: str) -> tuple[subprocess.Popen, str]:
     if url is None:
         proc.kill()
         pytest.fail("studio did not start:\n" + "".join(lines))
+    # Keep reading: a pipe nobody reads fills at 64 KiB and then blocks whichever studio thread logs next.
+    proc.output_lines = lines  # type: ignore[attr-defined]
+    threading.Thread(target=lines.extend, args=(proc.stdout,), daemon=True).start()
     return proc, url
+
+
+def studio_output(proc: subprocess.Popen, last: int = 60) -> str:
+    """The last `last` lines the studio started by `start_studio` printed, for a failure's message."""
+    return "".join(getattr(proc, "output_lines", [])[-last:])
 
 
 def stop(proc: subprocess.Popen) -> None:

@@ -21,7 +21,7 @@ from app.foxglove_live import FoxgloveLive
 from app.runtime import Runtime, RuntimeConfig
 from core.scene import Box, Scene
 from tasks import BasePose, BaseSubtask, TaskSequence
-from tests.app.conftest import free_port, start_studio, stop
+from tests.app.conftest import free_port, start_studio, stop, studio_output
 
 pytestmark = pytest.mark.wallclock
 
@@ -138,8 +138,11 @@ def test_the_command_line_serves_foxglove_beside_the_studio() -> None:
     proc, url = start_studio("--foxglove", str(port))
     try:
         assert url.startswith("http://127.0.0.1:")
-        got, seconds = asyncio.run(_first_messages(f"ws://127.0.0.1:{port}", ("/tf", "/scene/boxes"),
-                                                   timeout_s=60.0))
+        try:
+            got, seconds = asyncio.run(_first_messages(f"ws://127.0.0.1:{port}", ("/tf", "/scene/boxes"),
+                                                       timeout_s=60.0))
+        except AssertionError as err:
+            raise AssertionError(f"{err}\nthe studio printed:\n{studio_output(proc)}") from None
         assert seconds < 1.0 and got["/scene/boxes"].entities  # type: ignore[attr-defined]
     finally:
         stop(proc)
