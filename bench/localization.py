@@ -144,8 +144,7 @@ def run(seed: int, laps: int, localize: bool, share: float = 0.0, distance_m: fl
         completed += sum(o["outcome"] == "done" for o in outcomes)
         if rt.fault is not None:  # e.g. lost localization: the run stops there, as a run would; laps left count 0
             fault = f"lap {lap + 1}, t = {rt.time:.1f} s: {rt.fault}"
-            log.warning("seed %d (%s, moved %.0f %% by %.1f m): %s", seed, "on" if localize else "off", 100 * share,
-                        distance_m, fault)
+            log.warning("%s: %s", condition(seed, localize, share, distance_m), fault)
             break
     wall_s = time.perf_counter() - t0
     localizer = rt.closed_loop.localizer
@@ -153,6 +152,11 @@ def run(seed: int, laps: int, localize: bool, share: float = 0.0, distance_m: fl
     return {"rows": track.rows, "corrections": list(localizer.corrections) if localizer else [],
             "counts": dict(localizer.counts) if localizer else {}, "control_ms": control, "completed": completed,
             "wall_s": wall_s, "latency_s": rt.closed_loop.camera_latency_s(), "fault": fault}
+
+
+def condition(seed: int, localize: bool, share: float, distance_m: float) -> str:
+    """A run's seed and condition, as its faults name it."""
+    return f"seed {seed}, localization {'on' if localize else 'off'}, {share:.0%} of the boxes moved by {distance_m} m"
 
 
 def lap_against_odometry(seed: int) -> dict[str, float]:
@@ -347,8 +351,7 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
                  else "m" if k.startswith(("ate", "final", "rpe")) else "") for k in figures}
     targets = {"faulted_runs": "== 0", "ate_rmse_m": "<= 0.05", "ate_max_m": "<= 0.15", "registration_ms_p95": "<= 50",
                "false_corrections_pct": "<= 1", "ate_rmse_lap3_m": "<= 1.2 x lap1"}
-    faults = [f"seed {k[0]}, localization {'on' if k[2] else 'off'}, moved {k[3]:.0%} by {k[4]} m: {r['fault']}"
-              for k, r in result.items() if r["fault"] is not None]
+    faults = [f"{condition(*k[:1], *k[2:5])}: {r['fault']}" for k, r in result.items() if r["fault"] is not None]
     write_result(NAME, figures, units, targets, quick=args.quick, extra={"faults": faults})
     return figures
 
