@@ -693,6 +693,14 @@ class LocalizationParams:
     keyframe_floor_m: float = 0.05
     """A keyframe keeps the frame's points higher than `keyframe_floor_m` (m) that lie within `keyframe_label_m` (m)
     of a surface the map trusts, labelled with its object's id (the arm, noise and untrusted objects stay out)."""
+    loop_vouch_s: float = 1.0
+    """A loop closure accepted within this long (s of robot time, frame to frame) vouches for the pose: the map's
+    objects a registration then finds off their surfaces were placed while the pose drifted (the keyframes are raw
+    frames of an earlier visit, placed by the optimised graph), so they leave the reference as change evidence for
+    the map to re-place them, instead of putting the pose in doubt (refused as inconsistent) or taking it back onto
+    the drifted map (a χ² refusal under a jump's size grows P and the next frame is accepted). It mends the first
+    frames after a closure, not a map mapped along a long drift: docs/decisions.md, "A loop closure vouches for the
+    pose"."""
     loop_min_age_s: float = 40.0
     """Loop closures go onto keyframes exposed at least this long ago (s of robot time): an earlier visit."""
     loop_search_m: float = 1.0

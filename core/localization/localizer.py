@@ -26,6 +26,7 @@ import threading
 from collections import Counter, deque
 from collections.abc import Iterable
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
@@ -67,6 +68,8 @@ class Localizer:
         self._excluded: dict[int, float] = {}
         self._agreed: dict[int, float] = {}
         """Object id → the latest frame time it fitted an accepted registration."""
+        self._loop_accepted_t = -math.inf
+        """Frame time of the latest accepted loop closure (it vouches for the pose for `loop_vouch_s`)."""
         self._evidence: list[int] = []
         self._target: tuple[ReferenceSurface | None, tuple, Reference, registration.Target] | None = None
         self.tally: Counter[str] = Counter()
@@ -195,14 +198,18 @@ class Localizer:
                                    p.radius_min_m, p.radius_max_m))
         result = registration.register(target, source, frame.T_world_camera, radius, p.max_iterations)
         ms = result.ms
+        loop_vouches = frame.t - self._loop_accepted_t <= p.loop_vouch_s + 1e-9
         disagreeing, judged, vouched = self._judge_objects(ref, target, source, frame.T_world_camera,
-                                                           result.T_world_camera, radius <= p.radius_min_m + 1e-9)
+                                                           result.T_world_camera, radius <= p.radius_min_m + 1e-9,
+                                                           loop_vouches)
         if disagreeing and 2 * len(disagreeing) > judged and not vouched:  # most objects off: the pose is in doubt
             return self._record(Correction(frame.t, Verdict.INCONSISTENT, registration_ms=ms, reference_ms=ref_ms,
                                            off=disagreeing))
         if disagreeing:
-            surface, ref, target, result, more_ms = self._register_without(disagreeing, frame, base_pose, surface,
-                                                                           source, radius)
+            at_prediction = vouched or loop_vouches or radius <= p.radius_min_m + 1e-9
+            judged_T = frame.T_world_camera if at_prediction else result.T_world_camera
+            surface, ref, target, source, result, more_ms = self._register_without(
+                disagreeing, frame, base_pose, surface, source, radius, (ref, target, judged_T))
             ref_ms += more_ms
             ms += result.ms
         pts = np.asarray(source.points())[:, :3]
@@ -213,8 +220,9 @@ class Localizer:
         if small_refusal:
             moved = self._agreed_before(fit, frame.t)
             if moved:  # they fitted the pose a moment ago and now pull it: they moved, the base did not jump
-                surface, ref, target, result, more_ms = self._register_without(moved, frame, base_pose, surface,
-                                                                               source, radius)
+                surface, ref, target, source, result, more_ms = self._register_without(
+                    moved, frame, base_pose, surface, source, radius, (ref, target, result.T_world_camera))
+                pts = np.asarray(source.points())[:, :3]
                 correction = self._judge(frame, np.asarray(base_pose, float), result, pts, ms + result.ms,
                                          ref_ms + more_ms, disagreeing + moved)
                 fit = self._object_residuals(ref, target, source, result.T_world_camera)
@@ -231,15 +239,32 @@ class Localizer:
         return self._record(correction)
 
     def _register_without(self, ids: tuple[int, ...], frame: DepthFrame, base_pose: np.ndarray,
-                          surface: ReferenceSurface | None, source, radius: float
-                          ) -> tuple[ReferenceSurface | None, Reference, registration.Target, registration.Result,
-                                     float]:
-        """Leave `ids` out (as change evidence) and register the frame again against what remains: the surface
-        without them, its reference and target, the new result and the ms spent rebuilding the reference."""
+                          surface: ReferenceSurface | None, source, radius: float,
+                          judged: tuple[Reference, registration.Target, np.ndarray]
+                          ) -> tuple[ReferenceSurface | None, Reference, registration.Target, Any,
+                                     registration.Result, float]:
+        """Leave `ids` out (as change evidence) and register the frame again against what remains, without the
+        frame's points that lay on them (`judged`: the reference, target and camera pose they were judged at): those
+        points have no partner left, and counted in the inlier share they would refuse the frame for what was left
+        out. The surface without them, its reference and target, the source, the new result and the ms spent
+        rebuilding the reference."""
         surface = self._leave_out(ids, frame.t, surface)
         ref, target, ref_ms = self.prepared_reference(surface, np.asarray(base_pose[:2], float))
+        source = self._source_without(source, ids, *judged)
         result = registration.register(target, source, frame.T_world_camera, radius, self.params.max_iterations)
-        return surface, ref, target, result, ref_ms
+        return surface, ref, target, source, result, ref_ms
+
+    def _source_without(self, source, ids: tuple[int, ...], ref: Reference, target: registration.Target,
+                        T: np.ndarray):
+        """The frame's thinned points (camera frame) less those whose nearest reference point, at camera pose T, is
+        on one of `ids` within `radius_max_m` (as `_object_residuals` assigns them)."""
+        pts = np.asarray(source.points())[:, :3]
+        idx, d = target.nearest(pts @ T[:3, :3].T + T[:3, 3])
+        on = ref.object_ids[np.clip(idx, 0, len(ref.object_ids) - 1)]
+        drop = (idx >= 0) & (d < self.params.radius_max_m) & np.isin(on, np.asarray(ids, int))
+        if not np.any(drop):
+            return source
+        return registration.thin(pts[~drop], self.params.source_voxel_m)[0]
 
     def _odom_at(self, t: float, base_pose: np.ndarray) -> np.ndarray:
         """The odometry pose of the base whose world pose at robot time t was `base_pose` (T_world←odom then)."""
@@ -289,12 +314,14 @@ class Localizer:
                 if not jump:
                     self._grow(innovation)
                 return replace(c, verdict=Verdict.CHI2, nis=update.nis, jump=jump, innovation=innovation)
+            self._loop_accepted_t = frame.t
             return replace(c, delta=update.delta, nis=update.nis, apply_t=apply_t,
                            pose=se2.compose(update.delta, base_pose))
         with self.lock:
             if position_std(closure.P, p.max_range_m / 2) < self.filter.sigma_xy_m(p.max_range_m / 2):
                 self.filter.P = closure.P  # surer after the closure; never less sure: P also grows the margin (health)
             apply_t = self._commit(frame.t, c.delta)
+        self._loop_accepted_t = frame.t
         return replace(c, apply_t=apply_t)
 
     def _fuse(self, t: float, base_pose: np.ndarray, measured: np.ndarray, dirs: degeneracy.Directions
@@ -406,15 +433,21 @@ class Localizer:
         return len(fit) >= 2 and all(d <= self.params.disagreement_m for d in fit.values())
 
     def _judge_objects(self, ref: Reference, target: registration.Target, source, predicted: np.ndarray,
-                       aligned: np.ndarray, confident: bool) -> tuple[tuple[int, ...], int, bool]:
-        """The objects off their surfaces, how many were judged, and whether a still object vouched for the
+                       aligned: np.ndarray, confident: bool, loop_vouches: bool = False
+                       ) -> tuple[tuple[int, ...], int, bool]:
+        """The objects off their surfaces, how many were judged, and whether something vouched for the
         prediction. Objects are judged where the pose is best known: at the prediction when it is confident, else
         after the alignment; but a moved box within the correspondence radius drags the alignment, and when most of
         the view moved alike a vote after it finds the still box off (two of three boxes moved 0.07-0.12 m: the
         still one was left out and the two moved ones taken). So an object that fits the prediction and not the
-        aligned pose vouches for the prediction: then the objects off at the prediction are the moved ones."""
+        aligned pose vouches for the prediction: then the objects off at the prediction are the moved ones. A loop
+        closure accepted within `loop_vouch_s` (`loop_vouches`) vouches for it too: the objects off are then ones the
+        map placed while the pose drifted."""
         dm = self.params.disagreement_m
         at_prediction = self._object_residuals(ref, target, source, predicted)
+        if loop_vouches:
+            off = tuple(i for i, d in at_prediction.items() if d > dm)
+            return off, len(at_prediction), bool(off)
         if confident:
             return tuple(i for i, d in at_prediction.items() if d > dm), len(at_prediction), False
         at_aligned = self._object_residuals(ref, target, source, aligned)
