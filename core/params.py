@@ -518,8 +518,7 @@ class LocalizationParams:
     corrects, every correction gated; starting values from docs/decisions.md ("Localization")."""
 
     enabled: bool = False
-    """Off in the library's defaults, which the experiments and benchmarks were measured with; the app starts
-    with it on (`app/launch_defaults.py`; docs/decisions.md, "Localization on when the app starts")."""
+    """Off by default: see docs/decisions.md ("Localization") for the measurement behind the choice."""
     camera: CameraName = "base"
     """Whose frames are registered (the base camera sees the floor and the boxes around the base)."""
     rate_hz: float = 5.0
