@@ -26,7 +26,7 @@ import threading
 from collections import Counter, deque
 from collections.abc import Iterable
 from dataclasses import replace
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -47,6 +47,16 @@ DEGENERATE = "degenerate"
 """`Localizer.counts` key: accepted corrections with at least one direction masked."""
 OUTCOMES = {Verdict.ACCEPTED: "accepted", Verdict.DEGENERATE: "degenerate", Verdict.NO_REFERENCE: "no_reference"}
 """`Localizer.tally` key of a verdict; every other verdict is a gate's refusal, "rejected"."""
+
+
+class ObjectVerdict(NamedTuple):
+    """The objects a registration found off their surfaces (`off`), how many it judged, whether something vouched for
+    the prediction, and the camera pose (4x4) they were judged at."""
+
+    off: tuple[int, ...]
+    judged: int
+    vouched: bool
+    T_world_camera: np.ndarray
 
 
 class Localizer:
@@ -199,17 +209,15 @@ class Localizer:
         result = registration.register(target, source, frame.T_world_camera, radius, p.max_iterations)
         ms = result.ms
         loop_vouches = frame.t - self._loop_accepted_t <= p.loop_vouch_s + 1e-9
-        disagreeing, judged, vouched = self._judge_objects(ref, target, source, frame.T_world_camera,
-                                                           result.T_world_camera, radius <= p.radius_min_m + 1e-9,
-                                                           loop_vouches)
-        if disagreeing and 2 * len(disagreeing) > judged and not vouched:  # most objects off: the pose is in doubt
+        verdict = self._judge_objects(ref, target, source, frame.T_world_camera, result.T_world_camera,
+                                      radius <= p.radius_min_m + 1e-9, loop_vouches)
+        disagreeing = verdict.off
+        if disagreeing and 2 * len(disagreeing) > verdict.judged and not verdict.vouched:  # the pose is in doubt
             return self._record(Correction(frame.t, Verdict.INCONSISTENT, registration_ms=ms, reference_ms=ref_ms,
                                            off=disagreeing))
         if disagreeing:
-            at_prediction = vouched or loop_vouches or radius <= p.radius_min_m + 1e-9
-            judged_T = frame.T_world_camera if at_prediction else result.T_world_camera
             surface, ref, target, source, result, more_ms = self._register_without(
-                disagreeing, frame, base_pose, surface, source, radius, (ref, target, judged_T))
+                disagreeing, frame, base_pose, surface, source, radius, (ref, target, verdict.T_world_camera))
             ref_ms += more_ms
             ms += result.ms
         pts = np.asarray(source.points())[:, :3]
@@ -257,11 +265,10 @@ class Localizer:
     def _source_without(self, source, ids: tuple[int, ...], ref: Reference, target: registration.Target,
                         T: np.ndarray):
         """The frame's thinned points (camera frame) less those whose nearest reference point, at camera pose T, is
-        on one of `ids` within `radius_max_m` (as `_object_residuals` assigns them)."""
+        on one of `ids` (`_assign`)."""
         pts = np.asarray(source.points())[:, :3]
-        idx, d = target.nearest(pts @ T[:3, :3].T + T[:3, 3])
-        on = ref.object_ids[np.clip(idx, 0, len(ref.object_ids) - 1)]
-        drop = (idx >= 0) & (d < self.params.radius_max_m) & np.isin(on, np.asarray(ids, int))
+        on, _, near = self._assign(ref, target, pts, T)
+        drop = near & np.isin(on, np.asarray(ids, int))
         if not np.any(drop):
             return source
         return registration.thin(pts[~drop], self.params.source_voxel_m)[0]
@@ -399,15 +406,21 @@ class Localizer:
             with self.lock:
                 self.filter.P = self.filter.P + np.diag(np.asarray(innovation, float) ** 2)
 
+    def _assign(self, ref: Reference, target: registration.Target, pts: np.ndarray, T: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each frame point (camera frame, placed by camera pose T) to the reference object of its nearest reference
+        point: that object's id, the distance (m), and whether it is near enough (< `radius_max_m`) to count."""
+        idx, d = target.nearest(pts @ T[:3, :3].T + T[:3, 3])
+        ids = ref.object_ids[np.clip(idx, 0, len(ref.object_ids) - 1)]
+        return ids, d, (idx >= 0) & (d < self.params.radius_max_m)
+
     def _object_residuals(self, ref: Reference, target: registration.Target, source, T: np.ndarray
                           ) -> dict[int, float]:
         """Per object with at least `min_object_points` frame points near it (camera pose T): the median distance
         (m) of those points from the reference."""
         p = self.params
-        pts = np.asarray(source.points())[:, :3]
-        idx, d = target.nearest(pts @ T[:3, :3].T + T[:3, 3])
-        ids = ref.object_ids[np.clip(idx, 0, len(ref.object_ids) - 1)]
-        near = (idx >= 0) & (d < p.radius_max_m) & (ids != FLOOR_ID)
+        ids, d, near = self._assign(ref, target, np.asarray(source.points())[:, :3], T)
+        near &= ids != FLOOR_ID
         residual: dict[int, float] = {}
         for i in np.unique(ids[near]):
             mine = near & (ids == i)
@@ -433,27 +446,24 @@ class Localizer:
         return len(fit) >= 2 and all(d <= self.params.disagreement_m for d in fit.values())
 
     def _judge_objects(self, ref: Reference, target: registration.Target, source, predicted: np.ndarray,
-                       aligned: np.ndarray, confident: bool, loop_vouches: bool = False
-                       ) -> tuple[tuple[int, ...], int, bool]:
-        """The objects off their surfaces, how many were judged, and whether something vouched for the
-        prediction. Objects are judged where the pose is best known: at the prediction when it is confident, else
-        after the alignment; but a moved box within the correspondence radius drags the alignment, and when most of
-        the view moved alike a vote after it finds the still box off (two of three boxes moved 0.07-0.12 m: the
-        still one was left out and the two moved ones taken). So an object that fits the prediction and not the
-        aligned pose vouches for the prediction: then the objects off at the prediction are the moved ones. A loop
-        closure accepted within `loop_vouch_s` (`loop_vouches`) vouches for it too: the objects off are then ones the
-        map placed while the pose drifted."""
+                       aligned: np.ndarray, confident: bool, loop_vouches: bool = False) -> ObjectVerdict:
+        """The objects off their surfaces, how many were judged, whether something vouched for the prediction,
+        and the camera pose they were judged at. Objects are judged where the pose is best known: at the
+        prediction when it is confident, else after the alignment; but a moved box within the correspondence
+        radius drags the alignment, and when most of the view moved alike a vote after it finds the still box
+        off (two of three boxes moved 0.07-0.12 m: the still one was left out and the two moved ones taken). So
+        an object that fits the prediction and not the aligned pose vouches for the prediction: then the objects
+        off at the prediction are the moved ones. A loop closure accepted within `loop_vouch_s` (`loop_vouches`)
+        vouches for it too: the objects off are then ones the map placed while the pose drifted."""
         dm = self.params.disagreement_m
         at_prediction = self._object_residuals(ref, target, source, predicted)
-        if loop_vouches:
+        if loop_vouches or confident:
             off = tuple(i for i, d in at_prediction.items() if d > dm)
-            return off, len(at_prediction), bool(off)
-        if confident:
-            return tuple(i for i, d in at_prediction.items() if d > dm), len(at_prediction), False
+            return ObjectVerdict(off, len(at_prediction), loop_vouches and bool(off), predicted)
         at_aligned = self._object_residuals(ref, target, source, aligned)
         vouched = any(d <= dm and at_aligned.get(i, math.inf) > dm for i, d in at_prediction.items())
-        judged = at_prediction if vouched else at_aligned
-        return tuple(i for i, d in judged.items() if d > dm), len(judged), vouched
+        judged, T = (at_prediction, predicted) if vouched else (at_aligned, aligned)
+        return ObjectVerdict(tuple(i for i, d in judged.items() if d > dm), len(judged), vouched, T)
 
     def set_aside(self, ids: Iterable[int], t: float) -> None:
         """Leave objects out of the reference until robot time t + `exclusion_s` (a registration's disagreeing objects;
