@@ -867,6 +867,9 @@ class ClosedLoop:
                     return
                 sequencer, controller = self.sequencer, self.controller
             if self._hold_for_search(state.t, sequencer):
+                with self.lock:  # holding the base is this step's decision, not a control loop gone quiet
+                    self.last_control_wall = time.time()
+                    self._last_control_t = state.t
                 return
             with self.using_map() as world_map:
                 occupied = world_map.occupied_points()

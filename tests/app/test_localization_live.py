@@ -7,6 +7,7 @@ what runs where, and what the operator is told."""
 from __future__ import annotations
 
 import threading
+import time
 from collections import Counter
 from dataclasses import replace
 
@@ -15,18 +16,23 @@ import pytest
 
 from app.runtime import Runtime, RuntimeConfig
 from app.runtime.problems import ProblemKind
+from app.runtime.snapshot import RunState
 from bench.localization import true_surface
+from core.localization import global_search
 from core.localization.gates import Verdict
 from core.localization.localizer import Localizer
-from core.params import LocalizationParams, SimParams
+from core.params import LocalizationParams, SensorParams, SimParams
 from core.robot.model import RobotModel
 from core.sim.sim_robot import SimRobot
 from core.sim.world import SimWorld
 from tests.app.bridge.conftest import wait_until
 from tests.app.test_localization_health import HOLD
 from tests.app.test_localization_loop import CORRIDOR, OUT_AND_BACK
+from tests.app.test_localization_slip import AHEAD, SLIP_AT_S
 
 pytestmark = pytest.mark.wallclock
+SLOWER_SEARCH_S = 2.5
+"""Added to each global search's wall time in the slip test (more than the plan's 2 s age limit)."""
 
 
 @pytest.mark.slow
@@ -97,5 +103,54 @@ def test_without_frames_or_control_steps_the_health_timer_finds_the_pose_untrust
         assert "localization untrusted" in rt.status_line()
         assert rt.closed_loop.control_steps == 0 and not rt.closed_loop.latest_frames
         assert live.localization.registrations == 0 and live.localization.health_checks > 0
+    finally:
+        rt.shutdown()
+
+
+@pytest.mark.slow
+def test_live_a_slip_holds_the_base_for_the_search_without_counting_the_hold_as_late_control(monkeypatch):
+    """The slip of `test_localization_slip.py` (0.5 m sideways while driving out), live at speed 1: the localizer
+    gets lost, the base is held while the global search runs on the localization thread (seconds of wall time, longer
+    than the plan's age limit), and the run goes on once it is found again. Holding is what the control loop decided
+    at every step meanwhile, not a control loop gone quiet, so it is no "control is late" fault (the studio, live,
+    faulted so during a search before). The search is made 2.5 s slower than it is (a loaded machine's: the studio
+    beside a browser measured 2.8 s), so that the hold outlasts the age limit on any machine."""
+    search = global_search.search
+
+    def slow_search(*args, **kwargs):
+        time.sleep(SLOWER_SEARCH_S)
+        return search(*args, **kwargs)
+
+    monkeypatch.setattr(global_search, "search", slow_search)
+    sensor = replace(SensorParams(), slip_at_s=SLIP_AT_S, slip_m=(0.0, 0.5))
+    config = RuntimeConfig(map_kind="object", seed=3, sim=replace(SimParams(), sensor=sensor),
+                           localization=LocalizationParams(enabled=True))
+    rt = Runtime(config, scene=AHEAD, sequence=OUT_AND_BACK)
+    try:
+        rt.start_live()
+        rt.start()
+        loop, localizer = rt.closed_loop, rt.closed_loop.localizer
+        assert localizer is not None
+
+        def held() -> bool:
+            with localizer.lock:
+                return bool(localizer.lost.episodes)
+
+        assert wait_until(held, timeout_s=60), rt.status_line()
+        live = rt.live
+        assert live is not None
+        steps_when_lost = live.control_steps
+
+        def ended() -> bool:
+            with localizer.lock:
+                return np.isfinite(localizer.lost.episodes[0].anchored_t) or loop.fault_reason is not None
+
+        assert wait_until(ended, timeout_s=120), rt.status_line()
+        assert loop.fault_reason is None, loop.fault_reason
+        episode = localizer.lost.episodes[0]
+        assert live.control_steps > steps_when_lost, "the control loop went on ticking while the base was held"
+        assert episode.searches and episode.searches[-1][1].unique
+        assert wait_until(lambda: loop.run_state != RunState.RUNNING, timeout_s=120), rt.status_line()
+        assert loop.fault_reason is None and loop.run_state == RunState.FINISHED, (loop.fault_reason, rt.status_line())
     finally:
         rt.shutdown()
