@@ -55,7 +55,8 @@ def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--constraint", choices=CONSTRAINT_KINDS, default=None,
                         help="collision constraint kind (default: the --params file's, else cbf)")
     parser.add_argument("--params", type=Path, default=None, metavar="FILE.yaml",
-                        help="tunables overriding core/params.py, by section (htmpc: {gamma: 0.5}, ...)")
+                        help="tunables over the app's defaults (core/params.py with localization on), by section "
+                             "(htmpc: {gamma: 0.5}, localization: {enabled: false}, ...)")
     parser.add_argument("--scene-may-change", action="store_true",
                         help="accept targets too close to today's boxes with a warning (the boxes move first)")
     parser.add_argument("--log-level", default="INFO", help="DEBUG, INFO, WARNING or ERROR")
@@ -131,9 +132,9 @@ def _recorder(args, robot, sim_time: bool = False) -> Recorder | None:
     return Recorder(args.record, depth_frames=args.record_depth, sim_time=sim_time, robot=robot)
 def _config(args, **extra) -> RuntimeConfig:
     """The runtime's configuration: scene, sequence, map, constraint and the tunables of --params."""
-    from core.params_file import Tunables, load_params
+    from app.launch_defaults import launch_tunables
 
-    tunables = load_params(args.params) if args.params else Tunables()
+    tunables = launch_tunables(args.params)
     config = RuntimeConfig(scene=_scene_for(args), sequence=args.sequence, **tunables.sections(), **extra)
     return config.configured(map_kind=args.map_kind, constraint=args.constraint)
 

@@ -518,7 +518,8 @@ class LocalizationParams:
     corrects, every correction gated; starting values from docs/decisions.md ("Localization")."""
 
     enabled: bool = False
-    """Off by default: see docs/decisions.md ("Localization") for the measurement behind the choice."""
+    """Off in the library's defaults, which the experiments and benchmarks were measured with; the app starts
+    with it on (`app/launch_defaults.py`; docs/decisions.md, "Localization on when the app starts")."""
     camera: CameraName = "base"
     """Whose frames are registered (the base camera sees the floor and the boxes around the base)."""
     rate_hz: float = 5.0

@@ -1,19 +1,16 @@
 """Every shipped example (`tasks/examples/`) runs headless in lockstep on the object map, through the whole
 sensor model with the odometry's drift, and finishes with 0 collisions, as a new user would run it (`python -m app
-run --sequence F`). The aisle laps outlast the drift: they run with localization on, as their file says (`--params
-bench/experiments/localization_on.yaml`); `docs/decisions.md` says what was fixed for them to finish."""
+run --sequence F`: the app's launch tunables, localization on; `app/launch_defaults.py`). `docs/decisions.md` says
+what was fixed for the aisle laps to finish."""
 
 from pathlib import Path
 
 import pytest
 
+from app.launch_defaults import launch_tunables
 from app.runtime import Runtime, RuntimeConfig
 from app.runtime.snapshot import RunState
-from core.params import LocalizationParams
 from tasks.sequence_file import EXAMPLES_DIR, load_sequence
-
-NEEDS_LOCALIZATION = {"aisle_laps"}
-"""Examples whose laps outlast the odometry's drift: run with localization on (their file says so)."""
 
 
 def _scene_of(path: Path) -> Path | None:
@@ -24,8 +21,7 @@ def _scene_of(path: Path) -> Path | None:
 @pytest.mark.slow
 @pytest.mark.parametrize("path", sorted(EXAMPLES_DIR.glob("*.yaml")), ids=lambda p: p.stem)
 def test_a_shipped_example_finishes_on_the_object_map_without_a_collision(path: Path):
-    localization = LocalizationParams(enabled=path.stem in NEEDS_LOCALIZATION)
-    config = RuntimeConfig(scene=_scene_of(path), sequence=path, map_kind="object", localization=localization)
+    config = RuntimeConfig(scene=_scene_of(path), sequence=path, map_kind="object", **launch_tunables().sections())
     rt = Runtime(config)
     budget = sum(s.timeout_s + s.dwell_s for s in rt.sequence.subtasks)
     rt.run_lockstep(budget)
