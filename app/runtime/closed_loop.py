@@ -622,7 +622,7 @@ class ClosedLoop:
         """The backend's odometry-frame state and frames in the world: T_world←odom after the odometry's
         prediction and the corrections due by now (`core/localization`)."""
         assert self.localizer is not None
-        self.localizer.predict(state.q[:3])
+        self.localizer.predict(state.q[:3], state.t)
         self.localizer.apply_due(state.t)
         T = self.localizer.world_from_odom
         q, v = state.q.copy(), state.v.copy()

@@ -3,7 +3,9 @@
 
 The pose is untrusted when
   - no correction has been accepted for longer than `untrusted_after_s` (counted from the start while none has
-    been): registrations are rejected, degenerate, or have nothing to register against, and odometry drifts on;
+    been): registrations are rejected, degenerate, or have nothing to register, and odometry drifts on. Time the
+    base stood at rest while the latest registration was not a refusal is not counted (`Localizer.rest_s`): at
+    rest wheel odometry does not drift, and a view with nothing to register doubts nothing;
   - or trust_sigmas σ_xy > trust_delta_share · delta_safe, with σ_xy = √λ_max(P[:2, :2]) the largest position std:
     the position may be off by more than the collision margin can spare.
 The controller's answer (`margin_growth`, our addition): delta_safe grows by what the uncertainty eats of it,
@@ -37,11 +39,11 @@ class LocalizationHealth:
     accepted: int
     """Registrations accepted (corrections), since the start."""
     rejected: int
-    """Registrations a gate refused: too few points, not converged, few inliers, χ², inconsistent."""
+    """Registrations a gate refused: not converged, few inliers, χ², inconsistent."""
     degenerate: int
     """Registrations that constrained no direction of (x, y, yaw) (e.g. a floor-only view)."""
     no_reference: int
-    """Frames with too little trusted surface in view to register against."""
+    """Frames with nothing to register: too little trusted surface in view, or too few points in the frame."""
     last_accepted_t: float | None
     """Robot time (s) of the frame of the last accepted correction; None before the first."""
     since_accepted_s: float
@@ -52,6 +54,9 @@ class LocalizationHealth:
     """Why the pose is untrusted now, for the operator; None while it is trusted."""
     margin_growth_m: float
     """What the controller adds to delta_safe now (m; 0 with `grow_margin` off)."""
+    at_rest_s: float = 0.0
+    """Of `since_accepted_s`, the time the base stood at rest with nothing refusing its pose (not counted toward
+    `untrusted_after_s`)."""
 
 
 RATE_WINDOW_S = 2.0
@@ -72,15 +77,19 @@ def margin_growth(sigma_xy_m: float, delta_safe_m: float, p: LocalizationParams)
 
 
 def untrusted_reason(sigma_xy_m: float, since_accepted_s: float, accepted: int, rejected: int, degenerate: int,
-                     no_reference: int, delta_safe_m: float, p: LocalizationParams) -> str | None:
-    """Why the pose is untrusted (both reasons when both hold), or None."""
+                     no_reference: int, delta_safe_m: float, p: LocalizationParams, at_rest_s: float = 0.0
+                     ) -> str | None:
+    """Why the pose is untrusted (both reasons when both hold), or None. `at_rest_s` of `since_accepted_s` do not
+    count toward `untrusted_after_s`."""
     reasons = []
-    if since_accepted_s > p.untrusted_after_s:
-        what = (f"{rejected} rejected, {degenerate} degenerate, {no_reference} with nothing to register against"
+    counted = since_accepted_s - at_rest_s
+    if counted > p.untrusted_after_s:
+        what = (f"{rejected} rejected, {degenerate} degenerate, {no_reference} with nothing to register"
                 if rejected + degenerate + no_reference else "no registration")
         ever = "since the start" if accepted == 0 else "since the last"
-        reasons.append(f"no correction accepted for {since_accepted_s:.1f} s (> {p.untrusted_after_s:g} s; "
-                       f"{ever}: {what})")
+        rest = f", {at_rest_s:.1f} s at rest not counted" if at_rest_s > 0 else ""
+        reasons.append(f"no correction accepted for {counted:.1f} s (> {p.untrusted_after_s:g} s; "
+                       f"{ever}: {what}{rest})")
     limit = p.trust_delta_share * delta_safe_m
     if p.trust_sigmas * sigma_xy_m > limit:
         reasons.append(f"position {p.trust_sigmas:g}σ {p.trust_sigmas * sigma_xy_m:.2f} m exceeds "

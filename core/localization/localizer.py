@@ -45,8 +45,17 @@ from core.types import DepthFrame, LocalizationStatus, PoseEstimate, ReferenceSu
 
 DEGENERATE = "degenerate"
 """`Localizer.counts` key: accepted corrections with at least one direction masked."""
-OUTCOMES = {Verdict.ACCEPTED: "accepted", Verdict.DEGENERATE: "degenerate", Verdict.NO_REFERENCE: "no_reference"}
-"""`Localizer.tally` key of a verdict; every other verdict is a gate's refusal, "rejected"."""
+OUTCOMES = {Verdict.ACCEPTED: "accepted", Verdict.DEGENERATE: "degenerate", Verdict.NO_REFERENCE: "no_reference",
+            Verdict.TOO_FEW_POINTS: "no_reference"}
+"""`Localizer.tally` key of a verdict; every other verdict is a gate's refusal, "rejected". A frame with too few
+points has nothing to register, like one without trusted surface in view: no gate refused the pose."""
+QUIET = (Verdict.NO_REFERENCE, Verdict.TOO_FEW_POINTS, Verdict.DEGENERATE)
+"""Verdicts that neither confirm nor doubt the pose: at rest after one of these, the untrusted clock stands still."""
+QUIET_FRESH_S = 1.0
+"""A quiet verdict stops the untrusted clock only while it is this recent (s of robot time): frames still come."""
+REST_MPS = 0.01
+REST_RADPS = 0.01
+"""Odometry slower than these (m/s, rad/s) is at rest: its drift, a walk per metre and radian, does not grow."""
 
 
 class ObjectVerdict(NamedTuple):
@@ -98,6 +107,12 @@ class Localizer:
         re-anchorings left out): the pose graph's nodes are tied by the increments of T_chain ∘ odometry."""
         self._T_log: deque[tuple[float, np.ndarray]] = deque([(-math.inf, np.zeros(3))], maxlen=10_000)
         """(robot time, T_world←odom from then on): the odometry pose of a frame's base from its world pose."""
+        self._odom_t: float | None = None
+        self._last_verdict: tuple[float, Verdict] | None = None
+        """Frame time and verdict of the latest registration."""
+        self.rest_s = 0.0
+        """Robot time (s) since the last accepted correction that the base stood at rest with the latest
+        registration quiet (`QUIET`): not counted toward `untrusted_after_s`."""
 
     # --- cheap: every tick ----------------------------------------------------------------------------
 
@@ -106,14 +121,29 @@ class Localizer:
         """The estimate (x, y, yaw): world pose = T_world←odom ∘ odometry pose."""
         return self.filter.T_world_odom.copy()
 
-    def predict(self, odom_pose: np.ndarray) -> None:
-        """Grow the covariance by the odometry's motion since the last call."""
+    def predict(self, odom_pose: np.ndarray, t: float | None = None) -> None:
+        """Grow the covariance by the odometry's motion since the last call; with robot time t, count the time the
+        base stood at rest with nothing refusing its pose (`rest_s`)."""
         odom_pose = np.asarray(odom_pose, float)[:3]
         with self.lock:
             if self._odom is not None:
                 p = self.params
                 self.filter.predict(self._odom, odom_pose, p.drift_m_per_sqrt_m, p.drift_rad_per_sqrt_rad)
+                if t is not None and self._odom_t is not None and t > self._odom_t:
+                    self._count_rest(self._odom, odom_pose, t - self._odom_t, t)
             self._odom = odom_pose.copy()
+            self._odom_t = t
+
+    def _count_rest(self, odom_from: np.ndarray, odom_to: np.ndarray, dt: float, t: float) -> None:
+        """Add dt to `rest_s` if the odometry stood still over it and the latest registration, recent, was quiet:
+        standing still, wheel odometry does not drift, and a frame with nothing to register doubts nothing (at a
+        table at arm's length the base camera sees too few points, and the pose stays what it was). Refusals, no
+        frames at all, and every moving second still count (call under `lock`)."""
+        still = (float(np.hypot(*(odom_to[:2] - odom_from[:2]))) <= REST_MPS * dt
+                 and abs(wrap_angle(float(odom_to[2] - odom_from[2]))) <= REST_RADPS * dt)
+        last = self._last_verdict
+        if still and last is not None and last[1] in QUIET and t - last[0] <= QUIET_FRESH_S:
+            self.rest_s += dt
 
     def schedule(self, apply_t: float, delta: np.ndarray) -> None:
         """Queue a correction delta (T_world←odom update) to apply at robot time apply_t (call under `lock`)."""
@@ -146,18 +176,19 @@ class Localizer:
             P = self.filter.P.copy()
             tally = Counter(self.tally)
             times = list(self._accepted_t)
+            rest = self.rest_s
         last = times[-1] if times else None
         since = t - (self.start_t if last is None else last)
         sigma = health.position_sigma(P)
         recent = sum(1 for s in times if t - health.RATE_WINDOW_S < s <= t + 1e-9)
         reason = health.untrusted_reason(sigma, since, tally["accepted"], tally["rejected"], tally["degenerate"],
-                                         tally["no_reference"], delta_safe_m, p)
+                                         tally["no_reference"], delta_safe_m, p, rest)
         reason = "; ".join(r for r in (self.lost.reason(), reason) if r) or None
         return LocalizationHealth(
             t=t, covariance=P, sigma_xy_m=sigma, sigma_yaw_rad=float(np.sqrt(max(P[2, 2], 0.0))),
             accepted=tally["accepted"], rejected=tally["rejected"], degenerate=tally["degenerate"],
             no_reference=tally["no_reference"], last_accepted_t=last, since_accepted_s=since,
-            accepted_per_s=recent / health.RATE_WINDOW_S, untrusted=reason,
+            accepted_per_s=recent / health.RATE_WINDOW_S, untrusted=reason, at_rest_s=rest,
             margin_growth_m=health.margin_growth(sigma, delta_safe_m, p))
 
     def wants(self, frame: DepthFrame) -> bool:
@@ -499,6 +530,9 @@ class Localizer:
             self.tally[outcome] += 1
             if correction.verdict == Verdict.ACCEPTED:
                 self._accepted_t.append(correction.t)
+                self.rest_s = 0.0
+            if correction.verdict != Verdict.SEARCHED:
+                self._last_verdict = (correction.t, correction.verdict)
             if self.lost.observe(correction.verdict, correction.t, self.status != LocalizationStatus.ODOMETRY,
                                  correction.jump, correction.off):
                 self.status = LocalizationStatus.LOST

@@ -25,7 +25,9 @@ from tests.app.test_localization_loop import CORRIDOR
 
 HOLD = TaskSequence(subtasks=[BaseSubtask(name="hold", target=BasePose(x=0.0, y=0.0), timeout_s=60.0)])
 STARVED = LocalizationParams(enabled=True, min_source_points=10**7, min_trusted_points=0)
-"""Every registration refused (too few points: the gate can never pass), odometry alone in charge."""
+"""No registration can pass (too few points in every frame: nothing to register), odometry alone in charge."""
+REFUSED = LocalizationParams(enabled=True, max_iterations=0, min_trusted_points=0)
+"""Every registration refused by a gate (not converged: no iteration allowed), odometry alone in charge."""
 BOX_AHEAD = Scene((Box("ahead", (2.0, 0.0, 0.3)),), robot_start=(0.0, 0.0, 0.0))
 """One 0.6 m box, its near face at x = 1.7."""
 UP_TO_THE_BOX = TaskSequence(subtasks=[BaseSubtask(name="up to the box", target=BasePose(x=0.9, y=0.0),
@@ -64,10 +66,10 @@ def test_without_localization_the_snapshot_has_no_health():
 
 @pytest.mark.slow
 def test_corrections_starved_past_untrusted_after_s_is_a_problem_with_its_reason(tmp_path):
-    """Standing still, odometry does not drift (σ stays small: no margin grows), but no correction is accepted:
+    """Standing still, odometry does not drift (σ stays small: no margin grows), but every registration is refused:
     after `untrusted_after_s` the pose is untrusted, said in the status line, counted once as a problem with its
     reason, and written into the run report."""
-    rt = _runtime(replace(STARVED, untrusted_after_s=3.0), BOX_AHEAD, HOLD)
+    rt = _runtime(replace(REFUSED, untrusted_after_s=3.0), BOX_AHEAD, HOLD)
     rt.run_lockstep(2.5, until_done=False)
     assert rt.closed_loop.problems.count(ProblemKind.LOCALIZATION) == 0
     h = rt.snapshot().localization
@@ -86,6 +88,21 @@ def test_corrections_starved_past_untrusted_after_s_is_a_problem_with_its_reason
     report = json.loads((tmp_path / "report.json").read_text())
     assert report["problems"]["localization"]["count"] == 1
     assert report["summary"]["problems_localization"] == 1.0
+
+
+@pytest.mark.slow
+def test_standing_still_with_nothing_to_register_is_no_untrusted_pose():
+    """The same stand with frames that have nothing to register (too few points, as at a face at arm's length):
+    the base at rest does not drift and nothing doubts its pose, so past `untrusted_after_s` it is still trusted,
+    the time at rest reported apart; no problem recorded."""
+    rt = _runtime(replace(STARVED, untrusted_after_s=3.0), BOX_AHEAD, HOLD)
+    rt.run_lockstep(4.5, until_done=False)
+    h = rt.snapshot().localization
+    assert h is not None and h.accepted == 0 and h.no_reference >= 10 and h.rejected == 0
+    assert h.since_accepted_s > 4.0 and h.at_rest_s > 3.0, h
+    assert h.untrusted is None, h.untrusted
+    assert rt.closed_loop.problems.count(ProblemKind.LOCALIZATION) == 0
+    assert "localization untrusted" not in rt.status_line()
 
 
 @pytest.mark.slow
