@@ -3,7 +3,8 @@ localization on.
 
 The studio, `app run` and the bridge drive for minutes, and without localization the pose is the wheel odometry's
 random walk: measured over E4's three aisle laps, the soak and the anchored picks, localization on finished what
-odometry alone did not (README, "Not yet coped with"; docs/decisions.md, "Localization on when the app starts").
+odometry alone did not (README, "Perception as a real robot sees it"; docs/decisions.md, "Localization on when the
+app starts").
 The library's `LocalizationParams.enabled` stays off, so the experiments and benchmarks keep the configuration their
 reports were measured with; `bench/experiments/localization_on.yaml` turns it on there. A `--params` file is read
 over these defaults, so `localization: {enabled: false}` turns it off for a run.
