@@ -19,7 +19,7 @@ from app.ui.pose_view import GHOST_COLOR, UNTRUSTED_COLOR
 from core.params import SensorParams, SimParams
 from tests.app.conftest import ARTIFACTS
 from tests.app.studio_page import live_studio, open_studio, wait_for
-from tests.app.test_localization_health import BOX_AHEAD, STARVED, UP_TO_THE_BOX
+from tests.app.test_localization_health import BOX_AHEAD, REFUSED, UP_TO_THE_BOX
 
 pytestmark = pytest.mark.wallclock
 
@@ -36,7 +36,7 @@ def _pixels_near(png: bytes, color: tuple[int, int, int], tol: int = 40) -> int:
 @pytest.mark.slow
 def test_the_ellipse_the_ghost_and_the_localization_plots_appear(page):
     config = RuntimeConfig(map_kind="object", sim=replace(SimParams(), sensor=SensorParams.ideal()),
-                           localization=replace(STARVED, drift_m_per_sqrt_m=0.2))
+                           localization=replace(REFUSED, drift_m_per_sqrt_m=0.2))
     runtime = Runtime(config, scene=BOX_AHEAD, sequence=UP_TO_THE_BOX)
     with live_studio(runtime) as studio:
         open_studio(page, studio)
