@@ -868,8 +868,7 @@ class ClosedLoop:
                 sequencer, controller = self.sequencer, self.controller
             if self._hold_for_search(state.t, sequencer):
                 with self.lock:  # holding the base is this step's decision, not a control loop gone quiet
-                    self.last_control_wall = time.time()
-                    self._last_control_t = state.t
+                    self._stamp_control_step(state.t)
                 return
             with self.using_map() as world_map:
                 occupied = world_map.occupied_points()
@@ -903,12 +902,17 @@ class ClosedLoop:
                 else:
                     self.timings_ms["solve"] = solve_ms
                     self._pending_plans.append((state.t + self.config.actuation_delay_s, plan))
-                    self.last_control_wall = time.time()
-                    self._last_control_t = state.t
+                    self._stamp_control_step(state.t)
         if plan is None and sequencer.failed:
             self.notify(sequencer.status_line())
         with self.lock:
             self.timings_ms["control"] = (time.perf_counter() - t0) * 1e3
+
+    def _stamp_control_step(self, t: float) -> None:
+        """A control step ran at robot time t: the age `_command_at` holds the plan against starts again (call under
+        `lock`)."""
+        self.last_control_wall = time.time()
+        self._last_control_t = t
 
     def _hold_for_search(self, t: float, sequencer: Sequencer) -> bool:
         """Whether this control step plans nothing because localization is lost (the subtask's clock stands still

@@ -45,11 +45,11 @@ from core.types import DepthFrame, LocalizationStatus, PoseEstimate, ReferenceSu
 
 DEGENERATE = "degenerate"
 """`Localizer.counts` key: accepted corrections with at least one direction masked."""
-OUTCOMES = {Verdict.ACCEPTED: "accepted", Verdict.DEGENERATE: "degenerate", Verdict.NO_REFERENCE: "no_reference",
-            Verdict.TOO_FEW_POINTS: "no_reference"}
+OUTCOMES = {Verdict.ACCEPTED: "accepted", Verdict.DEGENERATE: "degenerate",
+            **dict.fromkeys(lost.UNJUDGED, "no_reference")}
 """`Localizer.tally` key of a verdict; every other verdict is a gate's refusal, "rejected". A frame with too few
 points has nothing to register, like one without trusted surface in view: no gate refused the pose."""
-QUIET = (Verdict.NO_REFERENCE, Verdict.TOO_FEW_POINTS, Verdict.DEGENERATE)
+QUIET = (*lost.UNJUDGED, Verdict.DEGENERATE)
 """Verdicts that neither confirm nor doubt the pose: at rest after one of these, the untrusted clock stands still."""
 QUIET_FRESH_S = 1.0
 """A quiet verdict stops the untrusted clock only while it is this recent (s of robot time): frames still come."""
