@@ -31,6 +31,7 @@ from app.ui.authoring import (
     move_subtask,
     replace_subtask,
 )
+from app.ui.label_layout import FixedLabel
 from app.ui.notify import guarded, notify_all
 from core.types import Vec3, vec3
 from tasks.schema import BaseSubtask, EEPose, TaskSequence
@@ -39,6 +40,8 @@ from tasks.validation import Severity, TargetError, TargetFinding, changed_subta
 
 NEXT_RUN = ("The run under way goes on with the sequence it started with (Start resumes it after Pause or Stop); "
             "this edit runs in the next run: Start after this one ends, or Reset.")
+GOAL_LABEL_LIFT_M = 0.2
+"""A subtask's label sits this far above its goal."""
 NONE: str = "(none)"
 """The dropdown entry that selects nothing."""
 
@@ -72,6 +75,8 @@ class AuthoringPanel:
         self._version = runtime.sequence_version
         self._syncing = False
         self._markers: list = []
+        self.goal_labels: list[FixedLabel] = []
+        """The labels at the subtasks' goals, as the list names them ('4. ee: pick'); the map's labels keep clear."""
         g = guarded
         self.seq_name = server.gui.add_text("Sequence name", runtime.sequence.name)
         self.new_button = server.gui.add_button("New sequence", hint="Start an empty sequence (Undo brings it back)")
@@ -178,6 +183,7 @@ class AuthoringPanel:
         for handle in self._markers:
             handle.remove()
         self._markers = []
+        self.goal_labels = []
         scene = self.server.scene
         for i, sub in enumerate(seq.subtasks):
             poses = list(sub.path()) + ([sub.ee] if isinstance(sub, BaseSubtask) and sub.ee is not None else [])
@@ -199,8 +205,10 @@ class AuthoringPanel:
                 self._markers.append(scene.add_frame(name, axes_length=0.25 if last else 0.12, axes_radius=0.012,
                                                      position=pos, wxyz=wxyz, origin_color=color))
                 if last:
-                    self._markers.append(scene.add_label(f"{name}_label", f"{i + 1} {sub.kind}",
-                                                         position=np.asarray(pos) + [0, 0, 0.2]))
+                    spot = FixedLabel(np.asarray(pos, float) + [0, 0, GOAL_LABEL_LIFT_M], _label(i, sub),
+                                      on_base=parent.startswith("/robot"))
+                    self.goal_labels.append(spot)
+                    self._markers.append(scene.add_label(f"{name}_label", spot.text, position=spot.position))
 
     def _target_to_fields(self) -> None:
         if self._syncing:

@@ -36,6 +36,21 @@ def stacked(anchors: Sequence[np.ndarray]) -> list[np.ndarray]:
 
 
 @dataclass(frozen=True)
+class FixedLabel:
+    """A label another panel draws (a subtask's goal) that the map's labels keep clear of: its position (m) in the
+    world, or in the robot's base frame when `on_base` (it moves with the robot), and its text."""
+
+    position: np.ndarray
+    text: str
+    on_base: bool = False
+
+    def world(self, T_world_base: np.ndarray) -> np.ndarray:
+        """Its position in the world, the base at `T_world_base` (4×4)."""
+        p = np.asarray(self.position, float)
+        return T_world_base[:3, :3] @ p + T_world_base[:3, 3] if self.on_base else p
+
+
+@dataclass(frozen=True)
 class View:
     """A browser's camera as viser reports it: where it is, what it looks at, its vertical field of view (rad)
     and the page's canvas in pixels."""
@@ -94,13 +109,15 @@ def _covers(a: tuple[float, float, float, float], b: tuple[float, float, float, 
     return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
 
 
-def screen_stacked(anchors: Sequence[np.ndarray], texts: Sequence[str], view: View | None) -> list[np.ndarray]:
+def screen_stacked(anchors: Sequence[np.ndarray], texts: Sequence[str], view: View | None,
+                   fixed: Sequence[tuple[np.ndarray, str]] = ()) -> list[np.ndarray]:
     """The anchors, each moved up the page a line at a time while its label would cover one placed before it
-    (placed in order); unchanged without a view."""
+    (placed in order) or one of the `fixed` labels (position, text: drawn by someone else, they do not move);
+    unchanged without a view."""
     out = [np.asarray(a, float).copy() for a in anchors]
     if view is None:
         return out
-    boxes: list[tuple[float, float, float, float]] = []
+    boxes = [b for b in (_box(view, np.asarray(p, float), t) for p, t in fixed) if b is not None]
     for p, text in zip(out, texts, strict=True):
         box = _box(view, p, text)
         for _ in range(MAX_LINES):

@@ -4,6 +4,7 @@ the map's occupied points, an EDF slice, collision spheres, camera frusta and de
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -13,7 +14,7 @@ import viser
 from app.object_label import object_label, operator_names
 from app.runtime.snapshot import Snapshot
 from app.ui.colors import consistency_rgb, distance_rgb
-from app.ui.label_layout import View, screen_stacked, stacked
+from app.ui.label_layout import FixedLabel, View, screen_stacked, stacked
 from app.ui.robot_view import wxyz
 from core.params import MappingParams
 from core.robot.model import RobotModel
@@ -62,6 +63,8 @@ class MapView:
         self._last_seen: dict[int, MappedObject] = {}
         self.names: dict[int, str] = {}
         """Operator-given names by map id (the Names tab, a sequence's `objects`), shown after '#id'."""
+        self.fixed_labels: Callable[[], Sequence[FixedLabel]] = tuple
+        """Labels other panels draw (the subtasks' goals, `AuthoringPanel.goal_labels`): the objects' keep clear."""
         self._layers: dict[str, viser.SceneNodeHandle] = {}
         sphere = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
         self._sphere_mesh = (np.asarray(sphere.vertices, np.float32), np.asarray(sphere.faces, np.uint32))
@@ -129,7 +132,9 @@ class MapView:
         drawn = sorted(self._objects_to_draw(snap), key=lambda d: d[0].id)
         texts = [label_text(obj, removed, snap.state.t, self.names.get(obj.id)) for obj, removed in drawn]
         anchors = stacked([o.pose[:3, 3] + [0, 0, o.extent[2] / 2 + LABEL_LIFT_M] for o, _ in drawn])
-        anchors = screen_stacked(anchors, texts, self._view())
+        T_base = self.robot.link_poses(snap.state.q)["mobile_base"]
+        fixed = [(f.world(T_base), f.text) for f in self.fixed_labels()]
+        anchors = screen_stacked(anchors, texts, self._view(), fixed)
         for (obj, removed), text, anchor in zip(drawn, texts, anchors, strict=True):
             seen.add(obj.id)
             self._draw_object(obj, removed, text, anchor)

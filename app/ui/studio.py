@@ -87,6 +87,7 @@ class Studio:
         tabs = self.server.gui.add_tab_group()
         with tabs.add_tab("Sequence"):
             self.authoring = AuthoringPanel(self.server, runtime)
+            self.map_view.fixed_labels = lambda: self.authoring.goal_labels
         with tabs.add_tab("Scene edits"):
             self.scene_panel = ScenePanel(self.server, runtime)
         with tabs.add_tab("Monitor"):

@@ -3,7 +3,7 @@ line up along the view (and labels wider on the page than their boxes) are moved
 
 import numpy as np
 
-from app.ui.label_layout import View, any_overprint, screen_stacked, stacked
+from app.ui.label_layout import FixedLabel, View, any_overprint, screen_stacked, stacked
 
 
 def view_along_x() -> View:
@@ -39,3 +39,24 @@ def test_a_label_behind_the_camera_is_left_alone():
     view = view_along_x()
     behind = [np.array([-6.0, 0.0, 0.5]), np.array([-6.0, 0.0, 0.5])]
     np.testing.assert_allclose(screen_stacked(behind, ["#1", "#2"], view), behind)
+
+
+def test_an_object_label_keeps_clear_of_a_subtask_label_that_does_not_move():
+    # an EE goal 0.4 m above a box: its label '2. ee: pick' and the box's '#2 …' at one spot on the page
+    view = view_along_x()
+    goal = (np.array([4.0, 0.0, 1.35]), "2. ee: pick")
+    box = [np.array([4.0, 0.05, 1.35])]
+    text = ["#2 box_a E[v]=1.00 · seen now"]
+    assert any_overprint([goal[0], box[0]], [goal[1], text[0]], view)
+    placed = screen_stacked(box, text, view, fixed=[goal])
+    assert not any_overprint([goal[0], placed[0]], [goal[1], text[0]], view)
+    assert placed[0][2] > box[0][2]
+
+
+def test_a_label_on_the_base_follows_the_base():
+    T = np.eye(4)
+    T[:3, :3] = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]  # yaw 90°
+    T[:3, 3] = [2.0, 1.0, 0.0]
+    at = np.array([0.5, 0.0, 1.0])
+    np.testing.assert_allclose(FixedLabel(at, "1. ee: x", on_base=True).world(T), [2.0, 1.5, 1.0])
+    np.testing.assert_allclose(FixedLabel(at, "1. ee: x").world(T), at)

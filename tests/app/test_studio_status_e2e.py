@@ -16,6 +16,7 @@ from app.runtime.snapshot import RunState
 from app.ui.label_layout import View, any_overprint
 from core.scene import load_scene
 from tasks import load_sequence
+from tasks.schema import EEPose, EESubtask
 from tasks.sequence_file import EXAMPLES_DIR
 from tests.app.conftest import ARTIFACTS, ROOT
 from tests.app.studio_page import live_studio, open_studio, set_vector, wait_for
@@ -86,6 +87,9 @@ def test_mapped_objects_have_one_name_in_the_view_the_legend_and_the_labels(page
     """anchored_picks names box_a and box_c: their mapped objects read '#1 box_a' in the 3D label and the legend."""
     path = EXAMPLES_DIR / "anchored_picks.yaml"
     sequence = load_sequence(path)
+    # last, a world-frame goal over box_a: its label ('6. ee: hover over box_a') where box_a's map label would be
+    hover = EESubtask(name="hover over box_a", target=EEPose(position=(2.2, 1.3, 0.75)))
+    sequence = sequence.model_copy(update={"subtasks": [*sequence.subtasks, hover]})
     scene = load_scene((path.parent / sequence.scene).resolve())
     # slowed down: a browser drawing in software on a busy machine lags seconds behind the runtime
     runtime = Runtime(RuntimeConfig(map_kind="object", speed=0.5), scene=scene, sequence=sequence)
@@ -109,8 +113,13 @@ def test_mapped_objects_have_one_name_in_the_view_the_legend_and_the_labels(page
         view = View.of(next(iter(studio.server.get_clients().values())).camera)
         assert view is not None
         drawn = studio.map_view.drawn_objects()
-        assert not any_overprint([np.array(d.label_position) for d in drawn.values()],
-                                 [d.label for d in drawn.values()], view)
+        objects = [np.array(d.label_position) for d in drawn.values()], [d.label for d in drawn.values()]
+        assert not any_overprint(*objects, view)
+        # nor over a subtask's goal label ('2. ee: …', drawn by the Sequence tab; world-frame goals, which stand still)
+        goals = [g for g in studio.authoring.goal_labels if not g.on_base]
+        assert any(g.text.endswith("ee: hover over box_a") for g in goals)
+        for goal in goals:
+            assert not any_overprint([*objects[0], goal.position], [*objects[1], goal.text], view), goal.text
         assert runtime.run_state == RunState.RUNNING
         page.evaluate("() => document.querySelectorAll('[class*=Notification-root]').forEach(e => e.remove())")
         mid = ARTIFACTS / "studio_named_objects.png"
