@@ -324,8 +324,9 @@ class Localizer:
         assert self.loops is not None
         if n < p.min_source_points:
             return None
+        # not less the map registration's exclusions: those were judged at a pose that may have drifted, and the
+        # keyframes are what overrules it (objects a loop closure found off have left the keyframes already)
         live = set() if surface is None else set(np.unique(np.asarray(surface.object_ids, int)).tolist())
-        live -= set(self._excluded)
         with self.lock:
             P = self.filter.P.copy()
         chain = se2.compose(self._T_chain, self._odom_at(frame.t, base_pose))
