@@ -454,3 +454,6 @@ class ReferenceSurface:
     t: float
     points: np.ndarray
     object_ids: np.ndarray
+    merged_into: dict[int, int] = field(default_factory=dict)
+    """Ids the map merged into one of these objects → that object: the same surface under an older id (a
+    keyframe that labelled its points with the older id still shows a trusted surface)."""

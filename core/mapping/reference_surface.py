@@ -12,14 +12,16 @@ UNLABELLED = -1
 
 
 def trusted_surface(snapshot: ObjectMapSnapshot, min_consistency: float, min_observations: int) -> ReferenceSurface:
-    """Surface points of every live object with E[v] ≥ min_consistency seen at least min_observations times."""
+    """Surface points of every live object with E[v] ≥ min_consistency seen at least min_observations times, and
+    the ids merged into one of them."""
     trusted = [o for o in snapshot.objects
                if o.consistency >= min_consistency and o.observations >= min_observations and len(o.points)]
     if not trusted:
         return ReferenceSurface(snapshot.t, np.zeros((0, 3)), np.zeros(0, int))
     points = np.vstack([o.points for o in trusted])
     ids = np.concatenate([np.full(len(o.points), o.id, int) for o in trusted])
-    return ReferenceSurface(snapshot.t, points, ids)
+    kept = {o.id for o in trusted}
+    return ReferenceSurface(snapshot.t, points, ids, {g: k for g, k in snapshot.merged_into.items() if k in kept})
 
 
 def occupied_surface(t: float, occupied: np.ndarray) -> ReferenceSurface:
