@@ -194,19 +194,20 @@ class AuthoringPanel:
                 if isinstance(pose, EEPose):
                     pos, wxyz = _ee_marker(pose)
                     color = (245, 140, 20)
-                    parent = "/robot/mobile_base/authoring" if pose.frame == "base" else "/authoring/goals"
+                    on_base = pose.frame == "base"
+                    parent = "/robot/mobile_base/authoring" if on_base else "/authoring/goals"
                 else:
                     pos = (pose.x, pose.y, 0.02)
                     yaw = pose.yaw_rad or 0.0
                     wxyz = np.array([math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
                     color = (40, 110, 240)
-                    parent = "/authoring/goals"
+                    on_base, parent = False, "/authoring/goals"
                 name = f"{parent}/{i}_{k}"
                 self._markers.append(scene.add_frame(name, axes_length=0.25 if last else 0.12, axes_radius=0.012,
                                                      position=pos, wxyz=wxyz, origin_color=color))
                 if last:
                     spot = FixedLabel(np.asarray(pos, float) + [0, 0, GOAL_LABEL_LIFT_M], _label(i, sub),
-                                      on_base=parent.startswith("/robot"))
+                                      on_base=on_base)
                     self.goal_labels.append(spot)
                     self._markers.append(scene.add_label(f"{name}_label", spot.text, position=spot.position))
 

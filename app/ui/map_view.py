@@ -132,8 +132,9 @@ class MapView:
         drawn = sorted(self._objects_to_draw(snap), key=lambda d: d[0].id)
         texts = [label_text(obj, removed, snap.state.t, self.names.get(obj.id)) for obj, removed in drawn]
         anchors = stacked([o.pose[:3, 3] + [0, 0, o.extent[2] / 2 + LABEL_LIFT_M] for o, _ in drawn])
-        T_base = self.robot.link_poses(snap.state.q)["mobile_base"]
-        fixed = [(f.world(T_base), f.text) for f in self.fixed_labels()]
+        goals = self.fixed_labels()
+        T_base = self.robot.link_poses(snap.state.q)["mobile_base"] if any(f.on_base for f in goals) else np.eye(4)
+        fixed = [(f.world(T_base), f.text) for f in goals]
         anchors = screen_stacked(anchors, texts, self._view(), fixed)
         for (obj, removed), text, anchor in zip(drawn, texts, anchors, strict=True):
             seen.add(obj.id)
