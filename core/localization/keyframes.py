@@ -8,7 +8,8 @@ corrects it. A keyframe is kept only where no other lies within `keyframe_step_m
 first visit of a place is the one kept; later visits close loops onto it).
 
 Change: an object found disagreeing (moved) leaves every keyframe (`forget`); only objects the map trusts now enter
-a submap (a moved box re-created by POCD under a new id: the old id's points stay out).
+a submap, with the ids the map merged into them (a moved box re-created by POCD under a new id: the old id's points
+stay out; a duplicate merged into another object is the same surface, and stays in).
 """
 
 from __future__ import annotations
