@@ -133,7 +133,7 @@ class MapView:
         texts = [label_text(obj, removed, snap.state.t, self.names.get(obj.id)) for obj, removed in drawn]
         anchors = stacked([o.pose[:3, 3] + [0, 0, o.extent[2] / 2 + LABEL_LIFT_M] for o, _ in drawn])
         goals = self.fixed_labels()
-        T_base = self.robot.link_poses(snap.state.q)["mobile_base"] if any(f.on_base for f in goals) else np.eye(4)
+        T_base = self.robot.frame_pose(snap.state.q, "mobile_base") if any(f.on_base for f in goals) else np.eye(4)
         fixed = [(f.world(T_base), f.text) for f in goals]
         anchors = screen_stacked(anchors, texts, self._view(), fixed)
         for (obj, removed), text, anchor in zip(drawn, texts, anchors, strict=True):

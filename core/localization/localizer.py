@@ -324,10 +324,12 @@ class Localizer:
         assert self.loops is not None
         if n < p.min_source_points:
             return None
-        # not less the map registration's exclusions: those were judged at a pose that may have drifted, and the
-        # keyframes are what overrules it (objects a loop closure found off have left the keyframes already)
-        live = set() if surface is None else set(np.unique(np.asarray(surface.object_ids, int)).tolist())
-        live |= {gone for gone, keep in ({} if surface is None else surface.merged_into).items() if keep in live}
+        # the trusted objects and the ids merged into them (`trusted_surface` offers only those); not less the map
+        # registration's exclusions: those were judged at a pose that may have drifted, and the keyframes are what
+        # overrules it (objects a loop closure found off have left the keyframes already)
+        live: set[int] = set()
+        if surface is not None:
+            live = set(np.unique(np.asarray(surface.object_ids, int)).tolist()) | set(surface.merged_into)
         with self.lock:
             P = self.filter.P.copy()
         chain = se2.compose(self._T_chain, self._odom_at(frame.t, base_pose))

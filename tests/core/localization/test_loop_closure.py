@@ -46,6 +46,15 @@ def _lap(loc: Localizer, end: np.ndarray) -> None:
         loc.loops.node(pose, pose, P)
 
 
+def _after_a_lap() -> Localizer:
+    """A localizer that kept the start as a keyframe and drove a lap whose odometry ends at `DRIFT`."""
+    loc = _localizer()
+    loc.predict(np.zeros(3))
+    loc.correct(_at_start(CORNER, np.zeros(3), 1.0), np.zeros(3), surface(CORNER))
+    _lap(loc, DRIFT)
+    return loc
+
+
 def _at_start(rects: list[Rect], estimate: np.ndarray, t: float):
     """A frame at the true start (origin), posed by `estimate` (the base's world pose per the estimate)."""
     truth = camera_pose(0.0, 0.0, 0.0)
@@ -74,10 +83,7 @@ def test_back_at_the_start_after_a_drifting_lap_a_loop_closure_pulls_the_pose_ba
 
 
 def test_a_box_moved_since_the_earlier_visit_leaves_the_keyframes_and_does_not_drag_the_pose():
-    loc = _localizer()
-    loc.predict(np.zeros(3))
-    loc.correct(_at_start(CORNER, np.zeros(3), 1.0), np.zeros(3), surface(CORNER))
-    _lap(loc, DRIFT)
+    loc = _after_a_lap()
     moved = CORNER[:3] + [r.moved(np.array([0.1, 0.05, 0.0])) for r in CORNER[3:]]
     c = loc.correct(_at_start(moved, DRIFT, 100.0), DRIFT, surface(moved))
     assert c.loop and c.verdict == Verdict.ACCEPTED and 3 in c.disagreeing
@@ -91,10 +97,7 @@ def test_objects_a_map_registration_set_aside_stay_in_the_keyframes():
     """Back at the start with the pose drifted, a map registration judges the objects mapped there off (at the
     drifted prediction) and sets them aside; the keyframes of that place are what can tell, so they keep them (the
     aisle run's lap 2: with them left out no loop closure ran in the whole run)."""
-    loc = _localizer()
-    loc.predict(np.zeros(3))
-    loc.correct(_at_start(CORNER, np.zeros(3), 1.0), np.zeros(3), surface(CORNER))
-    _lap(loc, DRIFT)
+    loc = _after_a_lap()
     loc.set_aside([1, 2, 3], 99.0)
     c = loc.correct(_at_start(CORNER, DRIFT, 100.0), DRIFT, surface(CORNER))
     assert c.verdict == Verdict.ACCEPTED and c.loop, c
@@ -104,21 +107,14 @@ def test_objects_a_map_registration_set_aside_stay_in_the_keyframes():
 def test_a_keyframe_follows_its_objects_into_the_object_the_map_merged_them_into():
     """The map merged the walls and the box into one object (a new id) since the keyframe labelled them: the
     keyframe's points are that object's surface, and the loop closure still registers against them."""
-    loc = _localizer()
-    loc.predict(np.zeros(3))
-    loc.correct(_at_start(CORNER, np.zeros(3), 1.0), np.zeros(3), surface(CORNER))
-    _lap(loc, DRIFT)
+    loc = _after_a_lap()
     seen = surface(CORNER)
     merged = replace(seen, object_ids=np.full(len(seen.object_ids), 9), merged_into={1: 9, 2: 9, 3: 9})
     c = loc.correct(_at_start(CORNER, DRIFT, 100.0), DRIFT, merged)
     assert c.verdict == Verdict.ACCEPTED and c.loop, c
     assert c.pose is not None and np.linalg.norm(c.pose[:2]) < 0.01
     forgotten = replace(merged, merged_into={})
-    loc2 = _localizer()
-    loc2.predict(np.zeros(3))
-    loc2.correct(_at_start(CORNER, np.zeros(3), 1.0), np.zeros(3), surface(CORNER))
-    _lap(loc2, DRIFT)
-    assert not loc2.correct(_at_start(CORNER, DRIFT, 100.0), DRIFT, forgotten).loop, \
+    assert not _after_a_lap().correct(_at_start(CORNER, DRIFT, 100.0), DRIFT, forgotten).loop, \
         "ids the map no longer has and merged nowhere: not a trusted surface now"
 
 
