@@ -451,17 +451,28 @@ class Localizer:
 
     def _object_residuals(self, ref: Reference, target: registration.Target, source, T: np.ndarray
                           ) -> dict[int, float]:
-        """Per object with at least `min_object_points` frame points near it (camera pose T): the median distance
-        (m) of those points from the reference."""
+        """Per object with at least `min_object_points` frame points near its side faces (camera pose T): the median
+        distance (m) of those points from the faces' planes (`Target.side_offsets`). Side faces only, as they are what
+        pins the base's x, y and yaw, and what drags it when the object moved; from the plane, not the nearest
+        sample, so that a far face seen obliquely or a face not yet mapped to its end does not read as moved (a
+        newly mapped row read 4.1-4.4 cm from its samples, over `disagreement_m`, at every frame of a lap's corner,
+        was set aside and left the base with nothing to register against for 10 s: docs/decisions.md)."""
         p = self.params
-        ids, d, near = self._assign(ref, target, np.asarray(source.points())[:, :3], T)
-        near &= ids != FLOOR_ID
+        pts = np.asarray(source.points())[:, :3]
+        world = pts @ T[:3, :3].T + T[:3, 3]
+        idx, d = target.nearest(world)
+        ids = ref.object_ids[np.clip(idx, 0, len(ref.object_ids) - 1)]
+        near = (idx >= 0) & (d < p.radius_max_m) & (ids >= 0)
         residual: dict[int, float] = {}
-        for i in np.unique(ids[near]):
-            mine = near & (ids == i)
-            if np.sum(mine) < p.min_object_points or i < 0:
-                continue
-            residual[int(i)] = float(np.median(d[mine]))
+        if not np.any(near):
+            return residual
+        offset, side = target.side_offsets(world[near], idx[near])
+        ids = ids[near][side]
+        offset = offset[side]
+        for i in np.unique(ids):
+            mine = ids == i
+            if np.sum(mine) >= p.min_object_points:
+                residual[int(i)] = float(np.median(offset[mine]))
         return residual
 
     def _disagreeing(self, ref: Reference, target: registration.Target, source, T: np.ndarray

@@ -12,6 +12,9 @@ import small_gicp  # pyright: ignore[reportMissingImports]  (a compiled module w
 
 NEIGHBOURS = 10
 """Points whose spread gives each point's covariance (GICP's local plane)."""
+SIDE_NZ = 0.5
+"""A reference point whose normal's vertical part is below this lies on a side face (within 60° of vertical): only
+those faces pin the base's x, y and yaw."""
 
 
 @dataclass(frozen=True)
@@ -37,12 +40,26 @@ class Target:
         self.cloud = small_gicp.PointCloud(self.points)
         self.tree = small_gicp.KdTree(self.cloud, num_threads=1)
         small_gicp.estimate_covariances(self.cloud, self.tree, num_neighbors=NEIGHBOURS, num_threads=1)
+        self._covariances: np.ndarray | None = None
+        """The covariances' 3×3 blocks, read on the first `side_offsets`."""
         self.ms = (time.perf_counter() - t0) * 1e3
 
     def nearest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Index of the nearest reference point of each point and the distance to it (m)."""
         idx, sq = self.tree.batch_nearest_neighbor_search(np.ascontiguousarray(points, np.float64), num_threads=1)
         return np.asarray(idx, int).reshape(-1), np.sqrt(np.asarray(sq, float).reshape(-1))
+
+    def side_offsets(self, points: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """For points (world) and the index of their nearest reference point (≥ 0): the distance (m) of each from
+        that point's local plane (the least-spread direction of its GICP covariance), and whether that plane is a
+        side face (`SIDE_NZ`). Off a plane, not off a sample: a point of a face 5 cm apart from its samples lies up
+        to 2.5 cm from the nearest one, and the face's part not yet mapped lies farther still, in its plane."""
+        if self._covariances is None:
+            self._covariances = np.asarray(self.cloud.covs())[:, :3, :3]
+        _, vectors = np.linalg.eigh(self._covariances[idx])
+        normal = vectors[:, :, 0]
+        offset = np.einsum("ij,ij->i", normal, np.asarray(points, float) - self.points[idx])
+        return np.abs(offset), np.abs(normal[:, 2]) < SIDE_NZ
 
 
 def thin(points_camera: np.ndarray, voxel_m: float) -> tuple[small_gicp.PointCloud, int]:

@@ -75,14 +75,20 @@ def test_a_slip_among_boxes_gets_lost_and_the_search_re_anchors_within_centimetr
     assert loc.correct(frame, found, surface_of(BOXES)).verdict == Verdict.ACCEPTED
 
 
+WALL_SLIP = np.array([0.4, 0.0, 0.0])
+"""Toward the wall, within the correspondence gate (`radius_max_m`, 0.5 m): the registrations find the wall 0.4 m off
+its plane. (A slip of exactly 0.5 m put the wall's points at the gate: only floor points by the wall's foot were
+judged, and whether their median passed `disagreement_m` was chance.)"""
+
+
 def test_along_a_single_wall_the_search_is_not_unique_and_the_localizer_gives_up():
-    loc, t = _slipped(WALL, np.array([0.5, 0.0, 0.0]))  # toward the wall: the registrations disagree across it
+    loc, t = _slipped(WALL, WALL_SLIP)  # the registrations disagree across the wall
     p = loc.params
-    frame, base = _drifted_frame(WALL, np.array([0.5, 0.0, 0.0]), t=t)
+    frame, base = _drifted_frame(WALL, WALL_SLIP, t=t)
     loc.correct(frame, base, surface_of(WALL))  # the first frame while lost: the base at rest from the next one on
     t += PERIOD_S
     for k in range(p.search_tries):
-        frame, base = _drifted_frame(WALL, np.array([0.5, 0.0, 0.0]), t=t)
+        frame, base = _drifted_frame(WALL, WALL_SLIP, t=t)
         assert loc.correct(frame, base, surface_of(WALL)).verdict == Verdict.SEARCHED
         t += p.search_processing_s
         assert (loc.lost.failed is None) == (k < p.search_tries - 1)
