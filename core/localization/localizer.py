@@ -451,15 +451,33 @@ class Localizer:
 
     def _object_residuals(self, ref: Reference, target: registration.Target, source, T: np.ndarray
                           ) -> dict[int, float]:
-        """Per object with at least `min_object_points` frame points near its side faces (camera pose T): the median
-        distance (m) of those points from the faces' planes (`Target.side_offsets`). Side faces only, as they are what
-        pins the base's x, y and yaw, and what drags it when the object moved; from the plane, not the nearest
-        sample, so that a far face seen obliquely or a face not yet mapped to its end does not read as moved (a
-        newly mapped row read 4.1-4.4 cm from its samples, over `disagreement_m`, at every frame of a lap's corner,
-        was set aside and left the base with nothing to register against for 10 s: docs/decisions.md)."""
+        """Per object with at least `min_object_points` frame points near it (camera pose T): the median distance
+        (m) of those points from the reference (from the nearest sample, or with `disagreement_from_planes` from the
+        side faces' planes: `_plane_residuals`)."""
         p = self.params
-        pts = np.asarray(source.points())[:, :3]
-        world = pts @ T[:3, :3].T + T[:3, 3]
+        if p.disagreement_from_planes:
+            return self._plane_residuals(ref, target, source, T)
+        ids, d, near = self._assign(ref, target, np.asarray(source.points())[:, :3], T)
+        near &= ids != FLOOR_ID
+        residual: dict[int, float] = {}
+        for i in np.unique(ids[near]):
+            mine = near & (ids == i)
+            if np.sum(mine) < p.min_object_points or i < 0:
+                continue
+            residual[int(i)] = float(np.median(d[mine]))
+        return residual
+
+    def _plane_residuals(self, ref: Reference, target: registration.Target, source, T: np.ndarray
+                         ) -> dict[int, float]:
+        """Per object with at least `min_object_points` frame points near its side faces (camera pose T): the median
+        distance (m) of those points from the faces' planes (`Target.side_offsets`). Side faces only, as they pin the
+        base's x, y and yaw and drag it when the object moved; from the plane, not the nearest sample, so that a far
+        face seen obliquely or a face not yet mapped to its end does not read as moved (a newly mapped row read
+        4.1-4.4 cm from its samples at every frame of a lap's corner, was set aside and left the base with nothing to
+        register against for 10 s). Points farther than `radius_max_m` from any sample are not judged, so a 0.5 m slip
+        toward a single wall goes unseen: docs/decisions.md, "A new row read as moved"."""
+        p = self.params
+        world = np.asarray(source.points())[:, :3] @ T[:3, :3].T + T[:3, 3]
         idx, d = target.nearest(world)
         ids = ref.object_ids[np.clip(idx, 0, len(ref.object_ids) - 1)]
         near = (idx >= 0) & (d < p.radius_max_m) & (ids >= 0)
@@ -467,8 +485,7 @@ class Localizer:
         if not np.any(near):
             return residual
         offset, side = target.side_offsets(world[near], idx[near])
-        ids = ids[near][side]
-        offset = offset[side]
+        ids, offset = ids[near][side], offset[side]
         for i in np.unique(ids):
             mine = ids == i
             if np.sum(mine) >= p.min_object_points:
