@@ -13,8 +13,8 @@ import small_gicp  # pyright: ignore[reportMissingImports]  (a compiled module w
 NEIGHBOURS = 10
 """Points whose spread gives each point's covariance (GICP's local plane)."""
 SIDE_NZ = 0.5
-"""A reference point whose normal's vertical part is below this lies on a side face (within 60° of vertical): only
-those faces pin the base's x, y and yaw."""
+"""A reference point whose normal's vertical part is below this lies on a side face (its normal within 60° of
+horizontal): only those faces pin the base's x, y and yaw."""
 
 
 @dataclass(frozen=True)
@@ -52,8 +52,8 @@ class Target:
     def side_offsets(self, points: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """For points (world) and the index of their nearest reference point (≥ 0): the distance (m) of each from
         that point's local plane (the least-spread direction of its GICP covariance), and whether that plane is a
-        side face (`SIDE_NZ`). Off a plane, not off a sample: a point of a face 5 cm apart from its samples lies up
-        to 2.5 cm from the nearest one, and the face's part not yet mapped lies farther still, in its plane."""
+        side face (`SIDE_NZ`). Off a plane, not off a sample: a point of a face sampled 5 cm apart lies up to 3.5 cm
+        from the nearest sample, and the face's part not yet mapped lies farther still, in its plane."""
         if self._covariances is None:
             self._covariances = np.asarray(self.cloud.covs())[:, :3, :3]
         _, vectors = np.linalg.eigh(self._covariances[idx])
