@@ -298,7 +298,7 @@ class Localizer:
         """The frame's thinned points (camera frame) less those whose nearest reference point, at camera pose T, is
         on one of `ids` (`_assign`)."""
         pts = np.asarray(source.points())[:, :3]
-        on, _, near = self._assign(ref, target, pts, T)
+        _, on, _, near = self._assign(ref, target, _placed(pts, T))
         drop = near & np.isin(on, np.asarray(ids, int))
         if not np.any(drop):
             return source
@@ -441,56 +441,32 @@ class Localizer:
             with self.lock:
                 self.filter.P = self.filter.P + np.diag(np.asarray(innovation, float) ** 2)
 
-    def _assign(self, ref: Reference, target: registration.Target, pts: np.ndarray, T: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Each frame point (camera frame, placed by camera pose T) to the reference object of its nearest reference
-        point: that object's id, the distance (m), and whether it is near enough (< `radius_max_m`) to count."""
-        idx, d = target.nearest(pts @ T[:3, :3].T + T[:3, 3])
+    def _assign(self, ref: Reference, target: registration.Target, world: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Each frame point (world, placed by a camera pose) to its nearest reference point: that point's index, its
+        object's id, the distance (m), and whether it is near enough (< `radius_max_m`) to count."""
+        idx, d = target.nearest(world)
         ids = ref.object_ids[np.clip(idx, 0, len(ref.object_ids) - 1)]
-        return ids, d, (idx >= 0) & (d < self.params.radius_max_m)
+        return idx, ids, d, (idx >= 0) & (d < self.params.radius_max_m)
 
     def _object_residuals(self, ref: Reference, target: registration.Target, source, T: np.ndarray
                           ) -> dict[int, float]:
         """Per object with at least `min_object_points` frame points near it (camera pose T): the median distance
-        (m) of those points from the reference (from the nearest sample, or with `disagreement_from_planes` from the
-        side faces' planes: `_plane_residuals`)."""
+        (m) of those points from the reference: from the nearest sample, or with `disagreement_from_planes` from the
+        side faces' planes only (`Target.side_offsets`). Side faces, as they pin the base's x, y and yaw and drag it
+        when the object moved; from the plane, so that a far face seen obliquely or a face not yet mapped to its end
+        does not read as moved (a newly mapped row read 4.1-4.4 cm from its samples at every frame of a lap's corner,
+        was set aside and left the base with nothing to register against for 10 s). Points farther than
+        `radius_max_m` from any sample are not judged, so from the planes a 0.5 m slip toward a single wall goes
+        unseen: docs/decisions.md, "A new row read as moved"."""
         p = self.params
-        if p.disagreement_from_planes:
-            return self._plane_residuals(ref, target, source, T)
-        ids, d, near = self._assign(ref, target, np.asarray(source.points())[:, :3], T)
-        near &= ids != FLOOR_ID
-        residual: dict[int, float] = {}
-        for i in np.unique(ids[near]):
-            mine = near & (ids == i)
-            if np.sum(mine) < p.min_object_points or i < 0:
-                continue
-            residual[int(i)] = float(np.median(d[mine]))
-        return residual
-
-    def _plane_residuals(self, ref: Reference, target: registration.Target, source, T: np.ndarray
-                         ) -> dict[int, float]:
-        """Per object with at least `min_object_points` frame points near its side faces (camera pose T): the median
-        distance (m) of those points from the faces' planes (`Target.side_offsets`). Side faces only, as they pin the
-        base's x, y and yaw and drag it when the object moved; from the plane, not the nearest sample, so that a far
-        face seen obliquely or a face not yet mapped to its end does not read as moved (a newly mapped row read
-        4.1-4.4 cm from its samples at every frame of a lap's corner, was set aside and left the base with nothing to
-        register against for 10 s). Points farther than `radius_max_m` from any sample are not judged, so a 0.5 m slip
-        toward a single wall goes unseen: docs/decisions.md, "A new row read as moved"."""
-        p = self.params
-        world = np.asarray(source.points())[:, :3] @ T[:3, :3].T + T[:3, 3]
-        idx, d = target.nearest(world)
-        ids = ref.object_ids[np.clip(idx, 0, len(ref.object_ids) - 1)]
-        near = (idx >= 0) & (d < p.radius_max_m) & (ids >= 0)
-        residual: dict[int, float] = {}
-        if not np.any(near):
-            return residual
-        offset, side = target.side_offsets(world[near], idx[near])
-        ids, offset = ids[near][side], offset[side]
-        for i in np.unique(ids):
-            mine = ids == i
-            if np.sum(mine) >= p.min_object_points:
-                residual[int(i)] = float(np.median(offset[mine]))
-        return residual
+        world = _placed(np.asarray(source.points())[:, :3], T)
+        idx, ids, d, near = self._assign(ref, target, world)
+        near &= ids >= 0  # objects only: not the floor, not unlabelled
+        if p.disagreement_from_planes and np.any(near):
+            offset, side = target.side_offsets(world[near], idx[near])
+            return _median_per_object(ids[near][side], offset[side], p.min_object_points)
+        return _median_per_object(ids[near], d[near], p.min_object_points)
 
     def _disagreeing(self, ref: Reference, target: registration.Target, source, T: np.ndarray
                      ) -> tuple[int, ...] | None:
@@ -569,6 +545,21 @@ class Localizer:
                                  correction.jump, correction.off):
                 self.status = LocalizationStatus.LOST
         return correction
+
+
+def _placed(points_camera: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """Camera-frame points placed in the world by the camera pose T (4x4)."""
+    return points_camera @ T[:3, :3].T + T[:3, 3]
+
+
+def _median_per_object(ids: np.ndarray, values: np.ndarray, min_points: int) -> dict[int, float]:
+    """The median of `values` per object id with at least `min_points` of them."""
+    residual: dict[int, float] = {}
+    for i in np.unique(ids):
+        mine = ids == i
+        if np.sum(mine) >= min_points:
+            residual[int(i)] = float(np.median(values[mine]))
+    return residual
 
 
 def _constrained_innovation(measured: np.ndarray, predicted: np.ndarray, dirs: degeneracy.Directions
