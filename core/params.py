@@ -578,13 +578,18 @@ class LocalizationParams:
     """After registration, an object whose frame points sit farther than this (median, m) from its reference
     surface disagrees: it leaves the reference (registration runs again without it) and is reported to the
     map as change evidence."""
-    disagreement_from_planes: bool = False
+    disagreement_from_planes: bool = True
     """Judge that distance from the side faces' planes (`Target.side_offsets`) instead of from the nearest reference
     sample. Measured better over the aisle laps (ATE RMSE 5.2 against 6.0 cm, max 13.3 against 26.2 cm) but off: a
     0.5 m slip toward a single wall then goes unjudged and the localizer never gets lost (docs/decisions.md, "A new
     row read as moved")."""
     min_object_points: int = 20
     """An object's disagreement is judged on at least this many of the frame's points near it."""
+    see_through_share: float = 0.5
+    """With `disagreement_from_planes`: an object whose reference points in view (and not hidden) the frame, at its
+    predicted pose, looks through by more than the correspondence radius, at least this share of them, disagrees by
+    the median depth it is looked through (`core/localization/see_through.py`): a slip toward a wall places the wall's
+    points at the gate, where no residual judges them."""
     exclusion_s: float = 10.0
     """A disagreeing object stays out of the reference this long (s): the map meanwhile re-places or removes it."""
     agreed_recently_s: float = 1.0

@@ -31,7 +31,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from core.angles import wrap_angle
-from core.localization import degeneracy, gates, health, lost, registration, scan, se2
+from core.localization import degeneracy, gates, health, lost, registration, scan, se2, see_through
 from core.localization.correction import Correction
 from core.localization.frozen_surfaces import FrozenSurfaces
 from core.localization.gates import Verdict
@@ -240,8 +240,7 @@ class Localizer:
         result = registration.register(target, source, frame.T_world_camera, radius, p.max_iterations)
         ms = result.ms
         loop_vouches = frame.t - self._loop_accepted_t <= p.loop_vouch_s + 1e-9
-        verdict = self._judge_objects(ref, target, source, frame.T_world_camera, result.T_world_camera,
-                                      radius <= p.radius_min_m + 1e-9, loop_vouches)
+        verdict = self._judge_objects(ref, target, source, frame, result.T_world_camera, radius, loop_vouches)
         disagreeing = verdict.off
         if disagreeing and 2 * len(disagreeing) > verdict.judged and not verdict.vouched:  # the pose is in doubt
             return self._record(Correction(frame.t, Verdict.INCONSISTENT, registration_ms=ms, reference_ms=ref_ms,
@@ -457,8 +456,8 @@ class Localizer:
         when the object moved; from the plane, so that a far face seen obliquely or a face not yet mapped to its end
         does not read as moved (a newly mapped row read 4.1-4.4 cm from its samples at every frame of a lap's corner,
         was set aside and left the base with nothing to register against for 10 s). Points farther than
-        `radius_max_m` from any sample are not judged, so from the planes a 0.5 m slip toward a single wall goes
-        unseen: docs/decisions.md, "A new row read as moved"."""
+        `radius_max_m` from any sample are not judged here (`_looked_through` judges a face seen through from farther:
+        docs/decisions.md, "A new row read as moved")."""
         p = self.params
         world = _placed(np.asarray(source.points())[:, :3], T)
         idx, ids, d, near = self._assign(ref, target, world)
@@ -467,6 +466,17 @@ class Localizer:
             offset, side = target.side_offsets(world[near], idx[near])
             return _median_per_object(ids[near][side], offset[side], p.min_object_points)
         return _median_per_object(ids[near], d[near], p.min_object_points)
+
+    def _looked_through(self, ref: Reference, frame: DepthFrame, radius_m: float) -> dict[int, float]:
+        """With `disagreement_from_planes`: the objects the frame, at the pose it was posed at (the prediction), looks
+        through by more than the correspondence radius (`see_through.seen_through`), and the depth (m) by which it
+        does. Farther than registration looks for partners, so no alignment can have brought them back: a 0.5 m
+        slip toward a single wall puts the wall's points at the gate, where no residual judges them."""
+        p = self.params
+        if not p.disagreement_from_planes:
+            return {}
+        return see_through.seen_through(ref.points, ref.object_ids, frame, frame.T_world_camera, radius_m,
+                                        p.max_range_m, p.min_object_points, p.see_through_share)
 
     def _disagreeing(self, ref: Reference, target: registration.Target, source, T: np.ndarray
                      ) -> tuple[int, ...] | None:
@@ -484,8 +494,8 @@ class Localizer:
         view, had P grown by its 0.3 m pull and the next frame took it: 22 cm off for the lap)."""
         return len(fit) >= 2 and all(d <= self.params.disagreement_m for d in fit.values())
 
-    def _judge_objects(self, ref: Reference, target: registration.Target, source, predicted: np.ndarray,
-                       aligned: np.ndarray, confident: bool, loop_vouches: bool = False) -> ObjectVerdict:
+    def _judge_objects(self, ref: Reference, target: registration.Target, source, frame: DepthFrame,
+                       aligned: np.ndarray, radius_m: float, loop_vouches: bool = False) -> ObjectVerdict:
         """The objects off their surfaces, how many were judged, whether something vouched for the prediction,
         and the camera pose they were judged at. Objects are judged where the pose is best known: at the
         prediction when it is confident, else after the alignment; but a moved box within the correspondence
@@ -493,13 +503,18 @@ class Localizer:
         off (two of three boxes moved 0.07-0.12 m: the still one was left out and the two moved ones taken). So
         an object that fits the prediction and not the aligned pose vouches for the prediction: then the objects
         off at the prediction are the moved ones. A loop closure accepted within `loop_vouch_s` (`loop_vouches`)
-        vouches for it too: the objects off are then ones the map placed while the pose drifted."""
-        dm = self.params.disagreement_m
-        at_prediction = self._object_residuals(ref, target, source, predicted)
+        vouches for it too: the objects off are then ones the map placed while the pose drifted. The prediction is
+        the camera pose `frame` (the depth frame of `source`) was posed at; it is confident when the correspondence
+        radius is at its least. An object the prediction looks through beyond that radius is off at either pose."""
+        p = self.params
+        dm, confident = p.disagreement_m, radius_m <= p.radius_min_m + 1e-9
+        predicted = frame.T_world_camera
+        through = self._looked_through(ref, frame, radius_m)
+        at_prediction = self._object_residuals(ref, target, source, predicted) | through
         if loop_vouches or confident:
             off = tuple(i for i, d in at_prediction.items() if d > dm)
             return ObjectVerdict(off, len(at_prediction), loop_vouches and bool(off), predicted)
-        at_aligned = self._object_residuals(ref, target, source, aligned)
+        at_aligned = self._object_residuals(ref, target, source, aligned) | through
         vouched = any(d <= dm and at_aligned.get(i, math.inf) > dm for i, d in at_prediction.items())
         judged, T = (at_prediction, predicted) if vouched else (at_aligned, aligned)
         return ObjectVerdict(tuple(i for i, d in judged.items() if d > dm), len(judged), vouched, T)

@@ -13,7 +13,7 @@ from core.localization import Localizer
 from core.localization.health import margin_growth, position_sigma
 from core.params import LocalizationParams
 from tests.core.localization.synthetic import FLOOR, surface
-from tests.core.localization.test_localizer import CORNER, _drifted_frame, _localizer
+from tests.core.localization.test_localizer import BEHIND, CORNER, _drifted_frame, _localizer
 
 DELTA = 0.25
 
@@ -21,7 +21,7 @@ DELTA = 0.25
 def test_an_accepted_correction_resets_the_age_and_counts_by_outcome():
     loc = _localizer(min_trusted_points=0)
     floor_only, base = _drifted_frame([FLOOR], np.array([0.04, -0.03, 0.0]), t=0.5)
-    loc.correct(floor_only, base, surface(CORNER[1:3]))  # trusted walls, none in view: degenerate
+    loc.correct(floor_only, base, surface(BEHIND))  # trusted walls, none in view: degenerate
     frame, base = _drifted_frame(CORNER, np.array([0.04, -0.03, math.radians(1.0)]), t=1.0)
     loc.correct(frame, base, surface(CORNER))
     h = loc.health(1.5, DELTA)
@@ -64,7 +64,7 @@ def test_standing_still_with_nothing_to_register_stops_the_untrusted_clock_and_m
         loc.predict(still, t)
         if abs(t * 2 - round(t * 2)) < 1e-9:  # a frame every 0.5 s
             floor_only, base = _drifted_frame([FLOOR], np.zeros(3), t=t)
-            assert loc.correct(floor_only, base, surface(CORNER[1:3])).verdict.value == "degenerate"
+            assert loc.correct(floor_only, base, surface(BEHIND)).verdict.value == "degenerate"
     h = loc.health(t, DELTA)
     assert h.untrusted is None, h.untrusted
     assert h.since_accepted_s == pytest.approx(5.0) and h.at_rest_s == pytest.approx(4.5)  # from the first verdict
@@ -75,7 +75,7 @@ def test_standing_still_with_nothing_to_register_stops_the_untrusted_clock_and_m
         loc.predict(np.array([0.05 * k, 0.0, 0.0]), t)
         if k % 5 == 0:
             floor_only, base = _drifted_frame([FLOOR], np.zeros(3), t=t)
-            loc.correct(floor_only, base, surface(CORNER[1:3]))
+            loc.correct(floor_only, base, surface(BEHIND))
     h = loc.health(t, DELTA)
     assert h.at_rest_s == pytest.approx(4.5) and not np.allclose(loc.filter.P, moving)
     assert h.untrusted is not None and h.untrusted.startswith("no correction accepted for 3.5 s"), h.untrusted

@@ -20,6 +20,8 @@ CORNER = [FLOOR, Rect(0, 2.2, (-2.0, 0.0), (2.0, 1.5), 1), Rect(1, 1.2, (-1.0, 0
 """A wall ahead, a wall to the left and a box: every direction of x, y, yaw constrained."""
 WALL = [FLOOR, Rect(0, 2.2, (-3.0, 0.0), (3.0, 1.5), 1)]
 """One wall ahead: x and yaw constrained, y (along the wall) not."""
+BEHIND = [Rect(0, -2.2, (-2.0, 0.0), (2.0, 1.5), 1), Rect(1, 1.2, (-3.0, 0.0), (-0.5, 1.5), 2)]
+"""Trusted walls behind the camera (base at the origin facing +x): none in view."""
 
 
 def _localizer(**kw) -> Localizer:
@@ -54,10 +56,21 @@ def test_a_corner_view_corrects_a_drifted_pose_in_every_direction():
 def test_a_floor_only_view_corrects_nothing_along_the_floor():
     loc = _localizer(min_trusted_points=0)
     frame, base = _drifted_frame([FLOOR], np.array([0.04, -0.03, math.radians(1.0)]))
-    c = loc.correct(frame, base, surface(CORNER[1:3]))  # trusted walls exist, none is in view
+    c = loc.correct(frame, base, surface(BEHIND))  # trusted walls exist, none is in view
     assert c.verdict == Verdict.DEGENERATE and not np.any(c.delta)
     assert loc.apply_due(10.0) is False and not np.any(loc.world_from_odom)
     assert loc.status == LocalizationStatus.ODOMETRY
+
+
+def test_a_frame_that_looks_through_the_mapped_walls_doubts_the_pose_and_corrects_nothing():
+    """The map holds two walls ahead where the frame sees the floor beyond them: no frame point lies near them (a
+    pose 0.5 m toward a wall puts its points at the correspondence gate alike), yet the frame looks through both,
+    so the pose (or the map) is wrong: inconsistent, not a degenerate floor-only view."""
+    loc = _localizer(min_trusted_points=0)
+    frame, base = _drifted_frame([FLOOR], np.array([0.04, -0.03, math.radians(1.0)]))
+    c = loc.correct(frame, base, surface(CORNER[1:3]))
+    assert c.verdict == Verdict.INCONSISTENT and set(c.off) == {1, 2} and not np.any(c.delta)
+    assert loc.apply_due(10.0) is False and not np.any(loc.world_from_odom)
 
 
 def test_a_single_wall_corrects_across_it_and_not_along_it():
