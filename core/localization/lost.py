@@ -47,6 +47,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from core.angles import wrap_angle
 from core.localization import global_search, registration, scan, se2
 from core.localization.frozen_surfaces import FrozenSurfaces
 from core.localization.gates import Verdict
@@ -157,7 +158,7 @@ class LostWatch:
         if not (self.lost and self.resume_t is None and self.failed is None and t >= self.busy_until_t - 1e-9):
             return False
         return last is not None and bool(np.hypot(*(base_pose[:2] - last[:2])) < REST_M
-                                          and abs(base_pose[2] - last[2]) < REST_RAD)
+                                          and abs(wrap_angle(float(base_pose[2] - last[2]))) < REST_RAD)
 
     def searched(self, t: float, result: SearchResult) -> tuple[float, bool]:
         """Record a search of the frame exposed at t; the robot time its outcome is due, and whether it re-anchors

@@ -12,7 +12,8 @@ import pytest
 
 from core.localization import global_search, se2
 from core.localization.gates import Verdict
-from core.localization.lost import DROP, HOLD, INTEGRATE
+from core.localization.lost import DROP, HOLD, INTEGRATE, LostWatch
+from core.params import LocalizationParams
 from core.types import LocalizationStatus
 from tests.core.localization.synthetic import FLOOR, Rect, box, surface
 from tests.core.localization.test_localizer import WALL, _drifted_frame, _localizer
@@ -259,9 +260,6 @@ def test_frames_wait_only_for_a_verdict_that_could_refuse_them():
     trusted surface in view (the latest verdict had nothing to judge by) it goes in at once; a degenerate or
     unconverged verdict outside a streak confirms the frames up to it (before, they waited `hold_max_s`, 1 s); in a
     streak they still wait."""
-    from core.localization.lost import LostWatch
-    from core.params import LocalizationParams
-
     watch = LostWatch(LocalizationParams())
     assert watch.fate(0.1, 0.15) == HOLD  # no verdict yet
     watch.observe(Verdict.NO_REFERENCE, 0.2, localized=False)
@@ -348,3 +346,12 @@ def test_in_a_corridor_an_estimate_off_across_it_or_in_heading_is_not_on_the_lin
     loc, result = _lost_in(CORRIDOR, error, MAPPED_AHEAD)
     assert not result.corridor and not result.estimate_fits, result
     assert loc.lost.resume_t is None or result.unique
+
+
+def test_a_base_at_rest_whose_heading_is_reported_across_pi_is_at_rest_for_a_search():
+    """A backend that reports its heading wrapped to (-π, π]: at rest by a heading of π - 0.001 then -π + 0.001."""
+    watch = LostWatch(LocalizationParams(enabled=True))
+    watch.lost = True
+    assert not watch.wants_search(1.0, np.array([1.0, 2.0, math.pi - 0.001]))  # the first frame: nothing to compare
+    assert watch.wants_search(1.2, np.array([1.0, 2.0, -math.pi + 0.001]))
+    assert not watch.wants_search(1.4, np.array([1.0, 2.0, -math.pi + 0.05]))  # turning: not at rest
