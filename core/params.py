@@ -579,10 +579,10 @@ class LocalizationParams:
     surface disagrees: it leaves the reference (registration runs again without it) and is reported to the
     map as change evidence."""
     disagreement_from_planes: bool = True
-    """Judge that distance from the side faces' planes (`Target.side_offsets`) instead of from the nearest reference
-    sample. Measured better over the aisle laps (ATE RMSE 5.2 against 6.0 cm, max 13.3 against 26.2 cm) but off: a
-    0.5 m slip toward a single wall then goes unjudged and the localizer never gets lost (docs/decisions.md, "A new
-    row read as moved")."""
+    """Judge that distance from the side faces' planes (`Target.side_offsets`), and an object the predicted frame looks
+    through beyond the correspondence radius as off (`see_through_share`); off: from the nearest reference sample, the
+    judge before 2026-11-29, which read a far face seen obliquely as moved (docs/decisions.md, "A new row read as
+    moved")."""
     min_object_points: int = 20
     """An object's disagreement is judged on at least this many of the frame's points near it."""
     see_through_share: float = 0.5
