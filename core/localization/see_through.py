@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import minimum_filter
 
+from core.localization import scan
 from core.types import DepthFrame
 
 OCCLUDED_M = 0.1
@@ -29,16 +30,9 @@ def seen_through(points_world: np.ndarray, object_ids: np.ndarray, frame: DepthF
     through, the aisle's inner island read so at a prediction 0.5 cm from the truth)."""
     keep = object_ids >= 0
     pts, ids = np.asarray(points_world, float)[keep], np.asarray(object_ids)[keep]
-    T = np.linalg.inv(T_world_camera)
-    c = pts @ T[:3, :3].T + T[:3, 3]
-    z = c[:, 2]
-    reach = min(max_range_m, frame.range_m) - beyond_m
-    front = (z > 0.1) & (z < reach)
-    zs = np.where(front, z, 1.0)
-    u = np.floor(frame.K[0, 0] * c[:, 0] / zs + frame.K[0, 2]).astype(int)
-    v = np.floor(frame.K[1, 1] * c[:, 1] / zs + frame.K[1, 2]).astype(int)
-    h, w = frame.depth.shape
-    inside = front & (u >= 0) & (u < w) & (v >= 0) & (v < h)
+    z, u, v, inside = scan.project(pts, frame, T_world_camera, min(max_range_m, frame.range_m) - beyond_m)
+    if not np.any(inside):
+        return {}
     depth = np.asarray(frame.depth, float)
     nearest = minimum_filter(np.where(np.isfinite(depth) & (depth > 0.0), depth, np.inf), size=WINDOW_PX,
                              mode="nearest")

@@ -127,8 +127,8 @@ def test_a_box_moved_in_view_leaves_the_reference_and_does_not_drag_the_pose():
 def test_a_face_the_map_has_seen_only_part_of_agrees_with_the_pose_judged_from_its_plane(planes):
     """The map holds the wall ahead from y = 0.5 m on only (the rest not yet seen), sampled 10 cm apart; the frame
     sees more of it. Its unmapped part lies in the mapped part's plane, up to 0.5 m from the nearest sample, and every
-    point lies up to 7 cm from one: judged from the plane (`disagreement_from_planes`), the view agrees; from the
-    nearest sample (the default) the two walls read 4.7 and 4.1 cm off, over `disagreement_m`, and the registration is
+    point lies up to 7 cm from one: judged from the plane (`disagreement_from_planes`, the default), the view agrees;
+    from the nearest sample the two walls read 4.7 and 4.1 cm off, over `disagreement_m`, and the registration is
     refused (docs/decisions.md, "A new row read as moved")."""
     loc = _localizer(disagreement_from_planes=planes)
     ahead = CORNER[1]
